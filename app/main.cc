@@ -1,0 +1,51 @@
+// msmcal: calibration rig control and solver for soft-hinged micro scanning mirrors.
+#include <spdlog/spdlog.h>
+
+#include <CLI/CLI.hpp>
+#include <algorithm>
+#include <exception>
+#include <utility>
+#include <vector>
+
+#include "app/command_registry.h"
+
+namespace msmcal::app {
+namespace {
+std::vector<std::pair<int, CommandRegistrar>>& Registry() {
+  static std::vector<std::pair<int, CommandRegistrar>> registry;
+  return registry;
+}
+}  // namespace
+
+bool RegisterCommands(int order, CommandRegistrar registrar) {
+  Registry().emplace_back(order, std::move(registrar));
+  return true;
+}
+
+void AddRegisteredCommands(CLI::App& app) {
+  auto& registry = Registry();
+  std::stable_sort(registry.begin(), registry.end(),
+                   [](const auto& a, const auto& b) { return a.first < b.first; });
+  for (auto& [order, registrar] : registry) registrar(app);
+}
+
+}  // namespace msmcal::app
+
+int main(int argc, char** argv) {
+  CLI::App app{"msmcal: calibration rig and solver for soft-hinged micro scanning mirrors"};
+  app.require_subcommand(1);
+  std::string log_level = "info";
+  app.add_option("--log-level", log_level, "trace|debug|info|warn|error")
+      ->check(CLI::IsMember({"trace", "debug", "info", "warn", "error"}));
+  app.parse_complete_callback([&] { spdlog::set_level(spdlog::level::from_str(log_level)); });
+  msmcal::app::AddRegisteredCommands(app);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e);
+  } catch (const std::exception& e) {
+    spdlog::error("{}", e.what());
+    return 1;
+  }
+  return 0;
+}
