@@ -6,6 +6,7 @@
 #include <CLI/CLI.hpp>
 
 #include <functional>
+#include <string>
 
 namespace msmcal::app {
 
@@ -13,6 +14,11 @@ using CommandRegistrar = std::function<void(CLI::App& app)>;
 
 // Returns true so it can initialise a namespace-scope constant.
 bool RegisterCommands(int order, CommandRegistrar registrar);
+
+// Returns the subcommand `name` of `parent`, creating it if absent. Several families share
+// parents such as `experiment`, `mock` and `hall`.
+CLI::App* GetOrAddSubcommand(CLI::App& parent, const std::string& name,
+                             const std::string& description);
 
 // Adds every registered family to `app`, in `order`.
 void AddRegisteredCommands(CLI::App& app);

@@ -22,6 +22,16 @@ bool RegisterCommands(int order, CommandRegistrar registrar) {
   return true;
 }
 
+CLI::App* GetOrAddSubcommand(CLI::App& parent, const std::string& name,
+                             const std::string& description) {
+  for (CLI::App* sub : parent.get_subcommands([](CLI::App*) { return true; })) {
+    if (sub->get_name() == name) return sub;
+  }
+  CLI::App* sub = parent.add_subcommand(name, description);
+  sub->require_subcommand(1);
+  return sub;
+}
+
 void AddRegisteredCommands(CLI::App& app) {
   auto& registry = Registry();
   std::stable_sort(registry.begin(), registry.end(),
