@@ -1,0 +1,173 @@
+#include "processing/hall/calibration.h"
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+#include <random>
+#include <sstream>
+#include <stdexcept>
+
+namespace msmcal::hall {
+
+std::string HallCalibrationOptions::Validate() const {
+  std::ostringstream s;
+  if (const std::string e = time_base.Validate(); !e.empty()) s << "time_base: " << e;
+  else if (const std::string p = profile.Validate(); !p.empty()) s << "profile: " << p;
+  else if (!(delta_t_max_s > delta_t_min_s)) s << "delta_t window must satisfy max > min";
+  else if (repetitions < 1) s << "repetitions must be >= 1, got " << repetitions;
+  else if (!(train_fraction > 0 && train_fraction < 1)) s << "train_fraction must be in (0, 1), got " << train_fraction;
+  else if (models.empty()) s << "models must not be empty";
+  return s.str();
+}
+
+void MapReadings(const dataset::HallRecording& rec, const TimeBase& tb, std::vector<double>* t_s,
+                 std::vector<Eigen::Vector3d>* b) {
+  t_s->clear();
+  b->clear();
+  t_s->reserve(rec.readings.size());
+  b->reserve(rec.readings.size());
+  for (const auto& r : rec.readings) {
+    t_s->push_back(tb.GeneratorTime(r.mcu_time_us));
+    b->emplace_back(r.bx_uT, r.by_uT, r.bz_uT);
+  }
+}
+
+namespace {
+
+double Uniform(std::mt19937_64& rng) { return static_cast<double>(rng() >> 11) * 0x1.0p-53; }
+
+struct Mapped {
+  std::vector<double> t;
+  std::vector<Eigen::Vector3d> b;
+};
+
+// Splits readings into train/test with probability `train`.
+void SplitReadings(const Mapped& all, double train, std::mt19937_64& rng, Mapped* a, Mapped* b) {
+  a->t.clear();
+  a->b.clear();
+  b->t.clear();
+  b->b.clear();
+  for (size_t i = 0; i < all.t.size(); ++i) {
+    Mapped* dst = Uniform(rng) < train ? a : b;
+    dst->t.push_back(all.t[i]);
+    dst->b.push_back(all.b[i]);
+  }
+}
+
+Foreground MakeForeground(const Mapped& actual, const Mapped& background, double period, const PhaseProfileOptions& o) {
+  Foreground f;
+  f.actual = PhaseProfile::Build(actual.t, actual.b, period, o);
+  f.background = PhaseProfile::Build(background.t, background.b, period, o);
+  return f;
+}
+
+// Error normalisation for choosing the best model: degrees and millimetres are compared through
+// the spread of each output.
+Eigen::Vector3d OutputScale(const std::vector<PoseSample>& poses) {
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero(), ss = Eigen::Vector3d::Zero();
+  for (const auto& p : poses) mean += p.pose;
+  mean /= poses.size();
+  for (const auto& p : poses) ss += (p.pose - mean).cwiseAbs2();
+  return (ss / poses.size()).cwiseSqrt().cwiseMax(1e-12);
+}
+
+}  // namespace
+
+HallCalibrationResult CalibrateHall(const HallCalibrationInput& in, const HallCalibrationOptions& o) {
+  if (const std::string e = o.Validate(); !e.empty()) throw std::invalid_argument("HallCalibrationOptions: " + e);
+  if (!in.actual || !in.background) throw std::invalid_argument("CalibrateHall: needs both hall/actual.csv and hall/background.csv");
+  if (!(in.pattern_period_s > 0)) throw std::invalid_argument("CalibrateHall: drive.pattern_period_s must be > 0");
+  if (in.poses.size() < 12) throw std::invalid_argument("CalibrateHall: needs at least 12 mirror poses, got " + std::to_string(in.poses.size()));
+  HallCalibrationResult r;
+  try {
+    r.actual_time_base = FitTimeBase(in.actual->clock_edges_us, in.pattern_period_s, o.time_base);
+  } catch (const std::invalid_argument& e) {
+    throw std::invalid_argument(std::string("hall/actual_clock.csv: ") + e.what());
+  }
+  try {
+    r.background_time_base = FitTimeBase(in.background->clock_edges_us, in.pattern_period_s, o.time_base);
+  } catch (const std::invalid_argument& e) {
+    throw std::invalid_argument(std::string("hall/background_clock.csv: ") + e.what());
+  }
+  Mapped actual, background;
+  MapReadings(*in.actual, r.actual_time_base, &actual.t, &actual.b);
+  MapReadings(*in.background, r.background_time_base, &background.t, &background.b);
+
+  HallFitOptions fit;
+  fit.delta_t_min_s = o.delta_t_min_s;
+  fit.delta_t_max_s = o.delta_t_max_s;
+  fit.fast_frequency_hz = in.fast_frequency_hz;
+  fit.slow_frequency_hz = in.slow_frequency_hz;
+  fit.pattern_period_s = in.pattern_period_s;
+
+  const Eigen::Vector3d scale = OutputScale(in.poses);
+  std::mt19937_64 rng(o.seed);
+  const size_t n = in.poses.size();
+  const size_t n_train = std::clamp<size_t>(static_cast<size_t>(std::lround(o.train_fraction * n)), 1, n - 1);
+  std::vector<std::vector<Eigen::Vector3d>> test_rms(o.models.size()), train_rms(o.models.size());
+  std::vector<std::vector<double>> dts(o.models.size());
+  Mapped a_train, a_test, b_train, b_test;
+  for (int rep = 0; rep < o.repetitions; ++rep) {
+    std::vector<size_t> idx(n);
+    std::iota(idx.begin(), idx.end(), 0);
+    for (size_t i = n - 1; i > 0; --i) std::swap(idx[i], idx[static_cast<size_t>(Uniform(rng) * (i + 1))]);
+    std::vector<PoseSample> train, test;
+    for (size_t i = 0; i < n; ++i) (i < n_train ? train : test).push_back(in.poses[idx[i]]);
+    SplitReadings(actual, o.train_fraction, rng, &a_train, &a_test);
+    SplitReadings(background, o.train_fraction, rng, &b_train, &b_test);
+    const Foreground fg_train = MakeForeground(a_train, b_train, in.pattern_period_s, o.profile);
+    const Foreground fg_test = MakeForeground(a_test, b_test, in.pattern_period_s, o.profile);
+    const FieldFunction f_train = [&](double t) { return fg_train.Value(t); };
+    const FieldFunction f_test = [&](double t) { return fg_test.Value(t); };
+    for (size_t m = 0; m < o.models.size(); ++m) {
+      const HallFitResult fitted = FitHallModel(o.models[m], train, f_train, fit);
+      train_rms[m].push_back(fitted.train_rms);
+      test_rms[m].push_back(EvaluateRms(fitted.model, test, f_test));
+      dts[m].push_back(fitted.model.delta_t_s);
+    }
+  }
+  double best_score = 1e300;
+  for (size_t m = 0; m < o.models.size(); ++m) {
+    ModelStats s;
+    s.kind = o.models[m];
+    const double reps = static_cast<double>(o.repetitions);
+    for (int k = 0; k < o.repetitions; ++k) {
+      s.test_rms_mean += test_rms[m][k] / reps;
+      s.train_rms_mean += train_rms[m][k] / reps;
+      s.delta_t_mean_s += dts[m][k] / reps;
+    }
+    for (int k = 0; k < o.repetitions; ++k) {
+      s.test_rms_std += (test_rms[m][k] - s.test_rms_mean).cwiseAbs2() / reps;
+      s.delta_t_std_s += (dts[m][k] - s.delta_t_mean_s) * (dts[m][k] - s.delta_t_mean_s) / reps;
+    }
+    s.test_rms_std = s.test_rms_std.cwiseSqrt();
+    s.delta_t_std_s = std::sqrt(s.delta_t_std_s);
+    const double score = s.test_rms_mean.cwiseQuotient(scale).squaredNorm();
+    if (score < best_score) {
+      best_score = score;
+      r.best = s.kind;
+    }
+    r.table.push_back(s);
+  }
+  r.foreground = MakeForeground(actual, background, in.pattern_period_s, o.profile);
+  const FieldFunction f_all = [&](double t) { return r.foreground.Value(t); };
+  r.final_fit = FitHallModel(r.best, in.poses, f_all, fit);
+  return r;
+}
+
+HallPredictor::HallPredictor(HallModel model, PhaseProfile background, Eigen::Vector3d actual_mean_uT)
+    : model_(std::move(model)), background_(std::move(background)), actual_mean_(actual_mean_uT) {
+  if (background_.empty()) throw std::invalid_argument("HallPredictor: empty background profile");
+  offset_ = actual_mean_ - background_.Mean();
+}
+
+Eigen::Vector3d HallPredictor::Predict(double t_s, const Eigen::Vector3d& raw) const {
+  const Eigen::Vector3d fg = raw - background_.At(t_s) - offset_;
+  return model_.Predict(fg, t_s);
+}
+
+void HallPredictor::PredictBatch(const double* t_s, const Eigen::Vector3d* raw, Eigen::Vector3d* pose, size_t n) const {
+  for (size_t i = 0; i < n; ++i) pose[i] = Predict(t_s[i], raw[i]);
+}
+
+}  // namespace msmcal::hall

@@ -1,0 +1,102 @@
+#pragma once
+// The Hall-sensor calibration pipeline (MSM paper Sec. V-B) and its Table II protocol.
+//
+// 1. Time base: each recording's MCU time -> generator time from its clock edges.
+// 2. Foreground: actual and background readings folded to pattern phase, averaged into smooth
+//    periodic profiles P_A, P_B; B(t) = (P_A(t) - mean P_A) - (P_B(t) - mean P_B). Subtracting
+//    each recording's own mean removes a baseline shift between the two recordings (they are
+//    made at different times: the Earth's and the lab's static fields move); the mean pose goes
+//    into the models' constant term.
+// 3. Models with dt (hall_model.h), evaluated by random 4:1 train/test splits of the poses,
+//    repeated, with the Hall readings also split 4:1 and profiled separately for training and
+//    testing (so a test pose is never predicted from readings the training saw).
+
+#include <Eigen/Core>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "processing/dataset/recording.h"
+#include "processing/hall/hall_model.h"
+#include "processing/hall/phase_profile.h"
+#include "processing/hall/time_base.h"
+
+namespace msmcal::hall {
+
+struct HallCalibrationInput {
+  const dataset::HallRecording* actual = nullptr;
+  const dataset::HallRecording* background = nullptr;
+  double pattern_period_s = 0;
+  double fast_frequency_hz = 0;
+  double slow_frequency_hz = 0;
+  std::vector<PoseSample> poses;  // one per trigger: t_s in the pattern, (alpha_deg, beta_deg, trans_mm)
+};
+
+struct HallCalibrationOptions {
+  TimeBaseOptions time_base;
+  PhaseProfileOptions profile;
+  double delta_t_min_s = -0.01;
+  double delta_t_max_s = 0.01;
+  int repetitions = 50;
+  double train_fraction = 0.8;
+  uint64_t seed = 1;
+  std::vector<HallModelKind> models = {HallModelKind::kLinear, HallModelKind::kSine, HallModelKind::kQuadratic,
+                                       HallModelKind::kCubic};
+  std::string Validate() const;
+};
+
+// A foreground signal built from (subsets of) the two recordings.
+struct Foreground {
+  PhaseProfile actual;
+  PhaseProfile background;
+  Eigen::Vector3d Value(double t_s) const {
+    return (actual.At(t_s) - actual.Mean()) - (background.At(t_s) - background.Mean());
+  }
+};
+
+// Table II row: statistics over the repetitions.
+struct ModelStats {
+  HallModelKind kind = HallModelKind::kLinear;
+  Eigen::Vector3d test_rms_mean = Eigen::Vector3d::Zero();  // alpha_deg, beta_deg, trans_mm
+  Eigen::Vector3d test_rms_std = Eigen::Vector3d::Zero();
+  Eigen::Vector3d train_rms_mean = Eigen::Vector3d::Zero();
+  double delta_t_mean_s = 0;
+  double delta_t_std_s = 0;
+};
+
+struct HallCalibrationResult {
+  TimeBase actual_time_base;
+  TimeBase background_time_base;
+  std::vector<ModelStats> table;  // one per options.models, in that order
+  HallModelKind best = HallModelKind::kLinear;  // lowest mean test RMS (normalised per output)
+  HallFitResult final_fit;                      // best model refitted on every pose and reading
+  Foreground foreground;                        // from every reading
+};
+
+// Throws std::invalid_argument naming what is missing or inconsistent.
+HallCalibrationResult CalibrateHall(const HallCalibrationInput& input, const HallCalibrationOptions& options);
+
+// Readings of one recording as (generator time, field) through a time base.
+void MapReadings(const dataset::HallRecording& rec, const TimeBase& tb, std::vector<double>* t_s,
+                 std::vector<Eigen::Vector3d>* b);
+
+// Live prediction: raw readings (uT, generator time) -> pose. Thread-safe (const).
+class HallPredictor {
+ public:
+  HallPredictor(HallModel model, PhaseProfile background, Eigen::Vector3d actual_mean_uT);
+  // Pose (alpha_deg, beta_deg, trans_mm) at generator time t_s - delta_t of a raw reading taken
+  // at generator time t_s.
+  Eigen::Vector3d Predict(double t_s, const Eigen::Vector3d& raw_uT) const;
+  void PredictBatch(const double* t_s, const Eigen::Vector3d* raw_uT, Eigen::Vector3d* pose, size_t n) const;
+  const HallModel& model() const { return model_; }
+  const PhaseProfile& background() const { return background_; }
+  const Eigen::Vector3d& actual_mean_uT() const { return actual_mean_; }
+
+ private:
+  HallModel model_;
+  PhaseProfile background_;
+  Eigen::Vector3d actual_mean_;
+  Eigen::Vector3d offset_;  // actual_mean - background mean
+};
+
+}  // namespace msmcal::hall
