@@ -159,11 +159,21 @@ HallPredictor::HallPredictor(HallModel model, PhaseProfile background, Eigen::Ve
     : model_(std::move(model)), background_(std::move(background)), actual_mean_(actual_mean_uT) {
   if (background_.empty()) throw std::invalid_argument("HallPredictor: empty background profile");
   offset_ = actual_mean_ - background_.Mean();
+  features_ = model_.FeatureCount();
+  if (model_.a.rows() != 3 || model_.a.cols() != features_)
+    throw std::invalid_argument("HallPredictor: parameter matrix must be 3 x " + std::to_string(features_));
+  for (int r = 0; r < 3; ++r)
+    for (int k = 0; k < features_; ++k) a_[r][k] = model_.a(r, k);
 }
 
 Eigen::Vector3d HallPredictor::Predict(double t_s, const Eigen::Vector3d& raw) const {
   const Eigen::Vector3d fg = raw - background_.At(t_s) - offset_;
-  return model_.Predict(fg, t_s);
+  double f[20];
+  model_.Features(fg, t_s, f);
+  double out[3] = {0, 0, 0};
+  for (int r = 0; r < 3; ++r)
+    for (int k = 0; k < features_; ++k) out[r] += a_[r][k] * f[k];
+  return {out[0], out[1], out[2]};
 }
 
 void HallPredictor::PredictBatch(const double* t_s, const Eigen::Vector3d* raw, Eigen::Vector3d* pose, size_t n) const {

@@ -97,6 +97,8 @@ class HallPredictor {
   PhaseProfile background_;
   Eigen::Vector3d actual_mean_;
   Eigen::Vector3d offset_;  // actual_mean - background mean
+  int features_ = 0;
+  double a_[3][20] = {};    // model.a, row-major, for a tight inner loop
 };
 
 }  // namespace msmcal::hall

@@ -83,7 +83,9 @@ PhaseProfile PhaseProfile::Build(const std::vector<double>& t_s, const std::vect
 
 Eigen::Vector3d PhaseProfile::At(double t_s) const {
   const int m = static_cast<int>(bins_.size());
-  const double u = Wrap(t_s, period_s_) / period_s_ * m - 0.5;
+  double x = t_s / period_s_;
+  x -= std::floor(x);  // phase in [0, 1): cheaper than fmod on the predictor's hot path
+  const double u = x * m - 0.5;
   const double fl = std::floor(u);
   const double f = u - fl;
   int i1 = static_cast<int>(fl);
