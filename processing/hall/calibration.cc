@@ -93,6 +93,10 @@ HallCalibrationResult CalibrateHall(const HallCalibrationInput& in, const HallCa
   MapReadings(*in.actual, r.actual_time_base, &actual.t, &actual.b);
   MapReadings(*in.background, r.background_time_base, &background.t, &background.b);
 
+  // Profiles of random subsets must use the recordings' own sample period (a subset's spacing
+  // would cut the Fourier series below the fast drive).
+  PhaseProfileOptions profile = o.profile;
+  if (profile.sample_period_s == 0) profile.sample_period_s = MedianSpacing(actual.t);
   HallFitOptions fit;
   fit.delta_t_min_s = o.delta_t_min_s;
   fit.delta_t_max_s = o.delta_t_max_s;
@@ -115,8 +119,8 @@ HallCalibrationResult CalibrateHall(const HallCalibrationInput& in, const HallCa
     for (size_t i = 0; i < n; ++i) (i < n_train ? train : test).push_back(in.poses[idx[i]]);
     SplitReadings(actual, o.train_fraction, rng, &a_train, &a_test);
     SplitReadings(background, o.train_fraction, rng, &b_train, &b_test);
-    const Foreground fg_train = MakeForeground(a_train, b_train, in.pattern_period_s, o.profile);
-    const Foreground fg_test = MakeForeground(a_test, b_test, in.pattern_period_s, o.profile);
+    const Foreground fg_train = MakeForeground(a_train, b_train, in.pattern_period_s, profile);
+    const Foreground fg_test = MakeForeground(a_test, b_test, in.pattern_period_s, profile);
     const FieldFunction f_train = [&](double t) { return fg_train.Value(t); };
     const FieldFunction f_test = [&](double t) { return fg_test.Value(t); };
     for (size_t m = 0; m < o.models.size(); ++m) {
@@ -149,7 +153,7 @@ HallCalibrationResult CalibrateHall(const HallCalibrationInput& in, const HallCa
     }
     r.table.push_back(s);
   }
-  r.foreground = MakeForeground(actual, background, in.pattern_period_s, o.profile);
+  r.foreground = MakeForeground(actual, background, in.pattern_period_s, profile);
   const FieldFunction f_all = [&](double t) { return r.foreground.Value(t); };
   r.final_fit = FitHallModel(r.best, in.poses, f_all, fit);
   return r;

@@ -46,7 +46,7 @@ TEST(HallModel, TableTwoProtocolRanksModelsAndMeetsThePaper) {
   const auto actual = rig.Record(60, true, 11);
   const auto background = rig.Record(30, false, 12);
   HallCalibrationOptions o;
-  o.repetitions = 10;
+  o.repetitions = 6;
   // Poses measured with paper-like noise (Table I: ~0.02-0.04 deg).
   const HallCalibrationResult r = CalibrateHall(MakeInput(rig, actual, background, rig.Poses(195, 0.02, 0.005, 13)), o);
   ASSERT_EQ(r.table.size(), 4u);
