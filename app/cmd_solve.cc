@@ -2,14 +2,13 @@
 // DIR/results/ (mirror_planes.csv, beams.csv, validation.csv, summary.json "mirror_poses", and the
 // native validation_detail.csv). `msmcal experiment table1`: the paper's Table I on the simulated
 // rig (3 spanning angles x 2 scan patterns, baseline vs proposed).
-#include <nlohmann/json.hpp>
-#include <opencv2/imgcodecs.hpp>
-
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <nlohmann/json.hpp>
+#include <opencv2/imgcodecs.hpp>
 #include <sstream>
 
 #include "app/command_registry.h"
@@ -61,16 +60,18 @@ nlohmann::json SummaryJson(const solver::SolveOutput& out, double solve_time_s) 
   j["dropped_frames"] = dropped;
   j["notes"] = out.notes;
   const Eigen::Matrix3d r = out.world_from_mirror0.RotationMatrix();
-  j["world_from_mirror0"] = {{"R", {r(0, 0), r(0, 1), r(0, 2), r(1, 0), r(1, 1), r(1, 2), r(2, 0),
-                                    r(2, 1), r(2, 2)}},
-                             {"t", {out.world_from_mirror0.translation.x(),
-                                    out.world_from_mirror0.translation.y(),
-                                    out.world_from_mirror0.translation.z()}}};
+  j["world_from_mirror0"] = {
+      {"R", {r(0, 0), r(0, 1), r(0, 2), r(1, 0), r(1, 1), r(1, 2), r(2, 0), r(2, 1), r(2, 2)}},
+      {"t",
+       {out.world_from_mirror0.translation.x(), out.world_from_mirror0.translation.y(),
+        out.world_from_mirror0.translation.z()}}};
   return j;
 }
 
 solver::ImageLoader FolderLoader(const fs::path& dir) {
-  return [dir](const std::string& file) { return cv::imread((dir / file).string(), cv::IMREAD_UNCHANGED); };
+  return [dir](const std::string& file) {
+    return cv::imread((dir / file).string(), cv::IMREAD_UNCHANGED);
+  };
 }
 
 void RunSolve(const SolveArgs& args) {
@@ -81,7 +82,8 @@ void RunSolve(const SolveArgs& args) {
   options.seed = args.seed;
   const auto t0 = std::chrono::steady_clock::now();
   const solver::SolveOutput out = solver::SolveRecording(rec, FolderLoader(dir), options);
-  const double solve_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  const double solve_s =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   for (const auto& d : out.dropped)
     std::fprintf(stderr, "dropped %s: %s\n", d.file.c_str(), d.reason.c_str());
   const fs::path results = dir / "results";
@@ -159,7 +161,8 @@ void RunTable1(const Table1Args& args) {
   for (int pattern = 0; pattern < 2; ++pattern) {
     for (int k = 0; k < 3; ++k) {
       const int index = pattern * 3 + k + 1;
-      if (!args.rows.empty() && std::find(args.rows.begin(), args.rows.end(), index) == args.rows.end())
+      if (!args.rows.empty() &&
+          std::find(args.rows.begin(), args.rows.end(), index) == args.rows.end())
         continue;
       sim::SimOptions o;
       o.seed = args.seed + index;
@@ -212,9 +215,10 @@ void RunTable1(const Table1Args& args) {
        "|---|---|---|---|---|---|---|\n";
   char buf[512];
   for (const auto& r : table) {
-    std::snprintf(buf, sizeof(buf), "| %s | %.2f | %.3f ± %.3f | %.3f ± %.3f | %.4f | %.2f | %zu |\n",
-                  r.name.c_str(), r.spanning, r.base_rms, r.base_sd, r.prop_rms, r.prop_sd,
-                  r.normal_rms_deg, r.normalised, r.dropped);
+    std::snprintf(buf, sizeof(buf),
+                  "| %s | %.2f | %.3f ± %.3f | %.3f ± %.3f | %.4f | %.2f | %zu |\n", r.name.c_str(),
+                  r.spanning, r.base_rms, r.base_sd, r.prop_rms, r.prop_sd, r.normal_rms_deg,
+                  r.normalised, r.dropped);
     s << buf;
   }
   std::printf("%s", s.str().c_str());

@@ -51,11 +51,21 @@ function(msmcal_add_test)
   if(NOT ARG_TIMEOUT)
     set(ARG_TIMEOUT 300)
   endif()
+  # Paths for tests: compiled in (MSMCAL_TEST_SOURCE_DIR / MSMCAL_TEST_BINARY_DIR) and, for the
+  # source folder, in the environment. gtest_discover_tests flattens PROPERTIES and cannot carry
+  # a list-valued ENVIRONMENT, and an empty value would shift the key/value pairs, so LABELS is
+  # passed only when given.
+  target_compile_definitions(${ARG_NAME} PRIVATE
+    MSMCAL_TEST_SOURCE_DIR="${PROJECT_SOURCE_DIR}" MSMCAL_TEST_BINARY_DIR="${PROJECT_BINARY_DIR}")
+  set(props TIMEOUT ${ARG_TIMEOUT} ENVIRONMENT "MSMCAL_SOURCE_DIR=${PROJECT_SOURCE_DIR}")
+  if(ARG_LABELS)
+    string(REPLACE ";" "\\;" labels "${ARG_LABELS}")
+    list(APPEND props LABELS "${labels}")
+  endif()
   gtest_discover_tests(${ARG_NAME}
     DISCOVERY_MODE PRE_TEST
     WORKING_DIRECTORY ${PROJECT_BINARY_DIR}
-    PROPERTIES TIMEOUT ${ARG_TIMEOUT} LABELS "${ARG_LABELS}"
-               ENVIRONMENT "MSMCAL_SOURCE_DIR=${PROJECT_SOURCE_DIR};MSMCAL_BINARY_DIR=${PROJECT_BINARY_DIR}")
+    PROPERTIES ${props})
 endfunction()
 
 # msmcal_add_bench(NAME x_bench SRCS ... LINK_LIBS ...)

@@ -45,8 +45,8 @@ geometry::CameraModel ReadCameraYaml(const std::filesystem::path& file);
 void WriteCameraYaml(const std::filesystem::path& file, const geometry::CameraModel& camera);
 dataset::HallRecording ReadHallCsv(const std::filesystem::path& readings_csv,
                                    const std::filesystem::path& clock_csv);
-void WriteHallCsv(const std::filesystem::path& readings_csv,
-                  const std::filesystem::path& clock_csv, const dataset::HallRecording& hall);
+void WriteHallCsv(const std::filesystem::path& readings_csv, const std::filesystem::path& clock_csv,
+                  const dataset::HallRecording& hall);
 std::vector<dataset::HallReading> ReadHallReadingsCsv(const std::filesystem::path& file);
 void WriteHallReadingsCsv(const std::filesystem::path& file,
                           const std::vector<dataset::HallReading>& readings);
@@ -87,6 +87,12 @@ geometry::CameraModel ParseCameraYaml(const std::string& text, const std::string
 // in `triggers`, unique ids, clock edges strictly ascending). Empty if fine, else the first
 // problem, naming the field.
 std::string CheckRecording(const dataset::Recording& recording);
+
+// Decodes every image `recording` references under `dir` and checks it is a PNG of 8 or 16 bits
+// with 1 or 3 channels and the size of camera.yaml's image_size. Throws InterchangeError naming
+// the image and the session.yaml field ("step2/0001.png (step2.frames[1].file): ...").
+// Slow for big images: ReadRecording does not do it; `msmcal interchange check` does.
+void CheckImageFiles(const std::filesystem::path& dir, const dataset::Recording& recording);
 
 // Shortest round-trip text for a double ("0.1", "1e-07", "-3").
 std::string FormatDouble(double value);

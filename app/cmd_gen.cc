@@ -1,0 +1,226 @@
+// Function generator commands:
+//   msmcal gen identify --rig CONFIG
+//   msmcal gen apply --rig CONFIG [--detach] [--triggers-out FILE] [--transcript FILE]
+//   msmcal gen off --rig CONFIG
+//   msmcal mock generators --rig CONFIG [--unlocked] [--no-trigger-cable]
+//   msmcal mock generator --port P [--idn TEXT]
+#include <signal.h>
+
+#include <CLI/CLI.hpp>
+#include <cstdio>
+#include <fstream>
+#include <iostream>
+#include <memory>
+#include <stdexcept>
+#include <string>
+
+#include "app/command_registry.h"
+#include "drivers/generator/rig_generators.h"
+#include "drivers/generator/safe_state.h"
+#include "mocks/generator/mock_server.h"
+
+namespace {
+
+using msmcal::gen::FunctionGenerator;
+using msmcal::gen::RigGeneratorConfig;
+
+RigGeneratorConfig LoadValidated(const std::string& path) {
+  RigGeneratorConfig config = msmcal::gen::LoadRigGeneratorConfig(path);
+  if (const std::string e = config.Validate(); !e.empty()) {
+    throw std::runtime_error(path + ": invalid configuration: " + e);
+  }
+  return config;
+}
+
+struct GenArgs {
+  std::string rig = "config/rig.yaml";
+  bool detach = false;
+  std::string triggers_out;
+  std::string transcript;
+};
+
+// Blocks SIGINT/SIGTERM in this thread (and the threads it starts), then waits for one.
+class StopSignal {
+ public:
+  StopSignal() {
+    sigemptyset(&set_);
+    sigaddset(&set_, SIGINT);
+    sigaddset(&set_, SIGTERM);
+    pthread_sigmask(SIG_BLOCK, &set_, nullptr);
+  }
+  int Wait() {
+    int signo = 0;
+    sigwait(&set_, &signo);
+    return signo;
+  }
+
+ private:
+  sigset_t set_;
+};
+
+void Identify(const GenArgs& args) {
+  const RigGeneratorConfig config = LoadValidated(args.rig);
+  for (const auto* unit : {&config.unit1, &config.unit2}) {
+    auto g = msmcal::gen::OpenKeysight33500(*unit);
+    const auto id = g->Identify();
+    std::printf("%s %s:%d: %s %s serial %s firmware %s, options '%s', reference %s\n",
+                unit->name.c_str(), unit->link.host.c_str(), unit->link.port,
+                id.manufacturer.c_str(), id.model.c_str(), id.serial.c_str(), id.firmware.c_str(),
+                g->Options().c_str(), g->ReferenceLocked() ? "external (locked)" : "internal");
+  }
+}
+
+void Apply(const GenArgs& args) {
+  const RigGeneratorConfig config = LoadValidated(args.rig);
+  const msmcal::gen::RigSignalPlan plan = msmcal::gen::PlanRigSignals(config.signals);
+  std::unique_ptr<std::ofstream> transcript;
+  msmcal::scpi::TranscriptSink sink1, sink2;
+  if (!args.transcript.empty()) {
+    transcript = std::make_unique<std::ofstream>(args.transcript);
+    if (!*transcript) throw std::runtime_error(args.transcript + ": cannot write");
+    auto make = [&](const std::string& unit) {
+      return [out = transcript.get(), unit](const msmcal::scpi::TranscriptEntry& e) {
+        *out << e.time_ns << ' ' << unit << (e.to_instrument ? " << " : " >> ") << e.text << '\n';
+      };
+    };
+    sink1 = make(config.unit1.name);
+    sink2 = make(config.unit2.name);
+  }
+  auto master = msmcal::gen::OpenKeysight33500(config.unit1, sink1);
+  auto slave = msmcal::gen::OpenKeysight33500(config.unit2, sink2);
+  msmcal::gen::RigGenerators rig(*master, *slave);
+  msmcal::gen::SafeStateGuard guard([&rig] { rig.SafeState(); });
+  rig.Apply(plan);
+  const auto& t = plan.trigger;
+  std::printf(
+      "signals running: pattern period %.9g s, %zu triggers, arb %lld points at %.9g Sa/s, "
+      "max quantisation error %.3g s, duty %.3g\n",
+      t.pattern_period_s, t.times_s.size(), static_cast<long long>(t.arb.points),
+      t.arb.sample_rate_sps, t.max_quantisation_error_s, t.duty);
+  if (!args.triggers_out.empty()) {
+    std::ofstream out(args.triggers_out);
+    out << "j,t_s\n";
+    out.precision(17);
+    for (size_t j = 0; j < t.times_s.size(); ++j) out << j << ',' << t.times_s[j] << '\n';
+    if (!out) throw std::runtime_error(args.triggers_out + ": cannot write");
+  }
+  if (transcript) transcript->flush();
+  if (args.detach) {
+    guard.Disarm();
+    std::printf("detached: outputs stay on (msmcal gen off --rig %s turns them off)\n",
+                args.rig.c_str());
+    return;
+  }
+  std::printf("Ctrl-C (SIGINT) or SIGTERM turns the outputs off and exits\n");
+  std::fflush(stdout);
+  guard.WaitForSignal();
+}
+
+void Off(const GenArgs& args) {
+  const RigGeneratorConfig config = LoadValidated(args.rig);
+  bool all = true;
+  for (const auto* unit : {&config.unit1, &config.unit2}) {
+    auto g = msmcal::gen::OpenKeysight33500(*unit);
+    const bool ok = g->SafeState();
+    std::printf("%s: outputs %s\n", unit->name.c_str(), ok ? "off" : "NOT CONFIRMED OFF");
+    all = all && ok;
+  }
+  if (!all) throw std::runtime_error("safe state not confirmed by every generator");
+}
+
+void AddGenCommands(CLI::App& app) {
+  auto* gen =
+      msmcal::app::GetOrAddSubcommand(app, "gen", "Function generators (two Keysight 33520B)");
+  auto args = std::make_shared<GenArgs>();
+  auto rig_option = [&](CLI::App* sub) {
+    sub->add_option("--rig", args->rig, "Rig configuration (YAML)")
+        ->required()
+        ->check(CLI::ExistingFile);
+  };
+  auto* identify = gen->add_subcommand(
+      "identify", "Print identity, options and reference lock of both generators");
+  rig_option(identify);
+  identify->callback([args] { Identify(*args); });
+
+  auto* apply = gen->add_subcommand(
+      "apply",
+      "Configure the four phase-locked rig signals, start them, and keep them running "
+      "until SIGINT/SIGTERM (then outputs off)");
+  rig_option(apply);
+  apply->add_flag("--detach", args->detach, "Exit leaving the outputs on");
+  apply->add_option("--triggers-out", args->triggers_out, "Write the trigger table (CSV j,t_s)");
+  apply->add_option("--transcript", args->transcript, "Write the SCPI transcript");
+  apply->callback([args] { Apply(*args); });
+
+  auto* off = gen->add_subcommand("off", "Turn every generator output off");
+  rig_option(off);
+  off->callback([args] { Off(*args); });
+}
+
+struct MockArgs {
+  std::string rig = "config/rig.yaml";
+  bool unlocked = false;
+  bool no_trigger_cable = false;
+  int port = 0;
+  std::string idn;
+};
+
+void ServeGenerators(const MockArgs& args) {
+  const RigGeneratorConfig config = msmcal::gen::LoadRigGeneratorConfig(args.rig);
+  for (const auto* unit : {&config.unit1, &config.unit2}) {
+    if (unit->link.host != "127.0.0.1" && unit->link.host != "localhost") {
+      throw std::runtime_error(args.rig + ": generators." + unit->name + ".host = " +
+                               unit->link.host + ": the mock serves on 127.0.0.1 only");
+    }
+  }
+  StopSignal stop;
+  msmcal::sim::GeneratorPairOptions o;
+  o.port1 = config.unit1.link.port;
+  o.port2 = config.unit2.link.port;
+  o.reference_wired = !args.unlocked;
+  o.trigger_wired = !args.no_trigger_cable;
+  msmcal::sim::MockGeneratorPair pair(o);
+  std::cout << "listening on 127.0.0.1:" << pair.port(1) << " (" << config.unit1.name << ")\n"
+            << "listening on 127.0.0.1:" << pair.port(2) << " (" << config.unit2.name << ")"
+            << std::endl;
+  stop.Wait();
+}
+
+void ServeGenerator(const MockArgs& args) {
+  StopSignal stop;
+  msmcal::sim::UnitOptions u;
+  if (!args.idn.empty()) u.identity = args.idn;
+  msmcal::sim::Mock33520B unit(u, nullptr);
+  msmcal::sim::MockGeneratorServer server(unit, args.port);
+  server.Start();
+  std::cout << "listening on 127.0.0.1:" << server.port() << std::endl;
+  stop.Wait();
+}
+
+void AddMockGeneratorCommands(CLI::App& app) {
+  auto* mock = msmcal::app::GetOrAddSubcommand(app, "mock", "Serve mock instruments");
+  auto args = std::make_shared<MockArgs>();
+  auto* pair =
+      mock->add_subcommand("generators",
+                           "Serve the rig's two mock 33520B units on 127.0.0.1 (ports from the rig "
+                           "configuration) until SIGINT/SIGTERM");
+  pair->add_option("--rig", args->rig, "Rig configuration (YAML)")
+      ->required()
+      ->check(CLI::ExistingFile);
+  pair->add_flag("--unlocked", args->unlocked, "Leave the 10 MHz reference cable unplugged");
+  pair->add_flag("--no-trigger-cable", args->no_trigger_cable, "Leave the trigger cable unplugged");
+  pair->callback([args] { ServeGenerators(*args); });
+
+  auto* one = mock->add_subcommand("generator",
+                                   "Serve one mock 33520B on 127.0.0.1:PORT until SIGINT/SIGTERM");
+  one->add_option("--port", args->port, "TCP port (0 = any free port)")
+      ->required()
+      ->check(CLI::Range(0, 65535));
+  one->add_option("--idn", args->idn, "*IDN? reply");
+  one->callback([args] { ServeGenerator(*args); });
+}
+
+}  // namespace
+
+MSMCAL_REGISTER_COMMANDS(/*order=*/30, AddGenCommands);
+MSMCAL_REGISTER_COMMANDS(/*order=*/71, AddMockGeneratorCommands);

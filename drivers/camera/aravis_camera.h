@@ -1,0 +1,30 @@
+#pragma once
+// GenICam cameras through Aravis 0.8 (GigE Vision; USB3 Vision where Aravis was built with it).
+// Aravis stays private to aravis_camera.cc.
+
+#include <memory>
+#include <string>
+
+#include "drivers/camera/camera.h"
+
+namespace msmcal::camera {
+
+struct AravisCameraOptions {
+  // IP address ("127.0.0.1") or Aravis device id. Opening by address never broadcasts a
+  // discovery; opening by id does (Aravis enumerates every interface), so prefer addresses.
+  std::string device;
+  // GigE Vision stream packet size in bytes (GevSCPSPacketSize); 0 = keep the camera's.
+  // 8192 gives 0 lost packets on loopback (docs: camera-notes.md).
+  int packet_size = 8192;
+  // Let Aravis size the socket receive buffer to the frame (ARV_GV_STREAM_SOCKET_BUFFER_AUTO).
+  bool auto_socket_buffer = true;
+  bool packet_resend = true;
+
+  std::string Validate() const;
+};
+
+// Opens the camera; fails (no throw) when it does not answer (about 2.5 s for an absent GigE
+// address) or options are invalid.
+OpenCameraResult OpenAravisCamera(const AravisCameraOptions& options);
+
+}  // namespace msmcal::camera

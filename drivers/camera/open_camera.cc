@@ -1,0 +1,24 @@
+#include "drivers/camera/open_camera.h"
+
+#include "drivers/camera/aravis_camera.h"
+#include "drivers/camera/v4l2_camera.h"
+
+namespace msmcal::camera {
+
+OpenCameraResult OpenCamera(const std::string& device) {
+  if (device.rfind("v4l2:", 0) == 0) {
+    V4l2CameraOptions options;
+    options.path = device.substr(5);
+    return OpenV4l2Camera(options);
+  }
+  if (device.rfind("/dev/", 0) == 0) {
+    V4l2CameraOptions options;
+    options.path = device;
+    return OpenV4l2Camera(options);
+  }
+  AravisCameraOptions options;
+  options.device = device.rfind("aravis:", 0) == 0 ? device.substr(7) : device;
+  return OpenAravisCamera(options);
+}
+
+}  // namespace msmcal::camera

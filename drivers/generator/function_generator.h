@@ -1,0 +1,115 @@
+#pragma once
+// The narrow interface the rig code uses for a two-channel function generator, and the safety
+// limits every implementation enforces before anything reaches the instrument.
+
+#include <cstdint>
+#include <limits>
+#include <memory>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "drivers/scpi/scpi_client.h"
+#include "drivers/scpi/scpi_text.h"
+
+namespace msmcal::gen {
+
+enum class Waveform { kSin, kSquare, kPulse, kArb, kDc };
+const char* WaveformName(Waveform w);  // SCPI mnemonic: "SIN", "SQU", "PULS", "ARB", "DC"
+
+constexpr double kHighZ = std::numeric_limits<double>::infinity();
+
+// Everything one channel produces. Voltages are into load_ohm (kHighZ = high impedance), as the
+// instrument's OUTPut:LOAD setting interprets them.
+struct ChannelSetup {
+  Waveform waveform = Waveform::kSin;
+  double frequency_hz = 1000.0;  // SIN/SQU/PULS; ARB: sample rate / points
+  double amplitude_vpp = 0.1;    // ARB: peak-to-peak of the full DAC range
+  double offset_v = 0.0;
+  double phase_deg = 0.0;
+  double square_duty_percent = 50.0;
+  double load_ohm = 50.0;
+  // ARB only: int16 DAC samples (-32767..32767), played at arb_sample_rate_sps.
+  std::string arb_name;
+  std::vector<int16_t> arb_samples;
+  double arb_sample_rate_sps = 0.0;
+};
+
+// Safety limits of one channel (from the rig configuration: what the coil or the laser input
+// tolerates). A setup outside them is refused, never clipped.
+struct ChannelLimits {
+  std::string role = "unused";  // e.g. "fast_coil", "laser_trigger"
+  double max_vpp = 0.0;
+  double max_abs_offset_v = 0.0;
+  double min_frequency_hz = 0.0;
+  double max_frequency_hz = 0.0;
+  // Highest fraction of the period the output may sit above its mid level (laser duty).
+  double max_duty = 1.0;
+  std::string Validate(const std::string& field) const;  // empty when valid
+};
+
+// Empty when `setup` respects `limits`; otherwise names the channel, field, value and limit.
+std::string CheckLimits(const std::string& channel_name, const ChannelSetup& setup,
+                        const ChannelLimits& limits);
+
+class GeneratorError : public std::runtime_error {
+ public:
+  enum class Kind { kLimit, kIdentity, kLock, kInstrument };
+  GeneratorError(Kind kind, const std::string& message)
+      : std::runtime_error(message), kind_(kind) {}
+  Kind kind() const { return kind_; }
+
+ private:
+  Kind kind_;
+};
+
+enum class ReferenceSource { kInternal, kExternal };
+enum class StartTrigger { kBus, kExternal };
+
+// A two-channel generator. Every method either completes (and the instrument's error queue was
+// empty afterwards) or throws: scpi::ScpiError for the wire, GeneratorError for limits,
+// identity, reference lock and instrument errors. Not thread-safe except SafeState(), which may
+// run from a signal-watcher thread while another call is in flight.
+class FunctionGenerator {
+ public:
+  virtual ~FunctionGenerator() = default;
+  virtual const std::string& name() const = 0;
+
+  // *IDN? and *OPT?; refuses instruments outside the supported family.
+  virtual scpi::Identity Identify() = 0;
+  virtual std::string Options() = 0;
+  // *RST and *CLS: defaults, outputs off, error queue empty.
+  virtual void Reset() = 0;
+  // Checks the channel's limits, then configures it (output state unchanged).
+  virtual void ConfigureChannel(int channel, const ChannelSetup& setup) = 0;
+  virtual void SetOutput(int channel, bool on) = 0;
+  virtual void SetReference(ReferenceSource source) = 0;
+  // True when the unit runs on the external 10 MHz reference.
+  virtual bool ReferenceLocked() = 0;
+  // Both channels wait in infinite triggered bursts for `source`; with `trigger_out` the unit
+  // forwards its trigger on the rear Trig Out connector.
+  virtual void ArmStart(StartTrigger source, bool trigger_out) = 0;
+  // *TRG (bus trigger), then *OPC?.
+  virtual void Trigger() = 0;
+  virtual void SynchronizePhase() = 0;
+  // Every output off. Never throws; reconnects first if the connection was lost. Returns true
+  // when the instrument confirmed (both OUTPut? replies 0).
+  virtual bool SafeState() noexcept = 0;
+};
+
+struct Keysight33500Options {
+  std::string name = "generator";
+  scpi::ScpiClientOptions link;
+  ChannelLimits limits[2];
+  std::string Validate() const;  // names "<name>.<field>"
+};
+
+// Connects (deadline-bound) and identifies. The returned driver owns its connection.
+std::unique_ptr<FunctionGenerator> OpenKeysight33500(const Keysight33500Options& options,
+                                                     scpi::TranscriptSink transcript = nullptr);
+
+// True for identities of the 33500 series ("Agilent Technologies" or "Keysight Technologies",
+// model 335xxA/B). Exposed for tests.
+bool IsSupportedIdentity(const scpi::Identity& identity);
+
+}  // namespace msmcal::gen

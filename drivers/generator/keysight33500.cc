@@ -1,0 +1,285 @@
+// Keysight (Agilent) 33500-series driver over SCPI. Sequence per configuration batch: limits
+// checked locally, commands sent, SYSTem:ERRor? drained (any entry becomes a GeneratorError
+// naming the batch).
+#include <algorithm>
+#include <cmath>
+#include <regex>
+#include <sstream>
+
+#include "drivers/generator/function_generator.h"
+#include "drivers/scpi/scpi_text.h"
+
+namespace msmcal::gen {
+
+using scpi::FormatNumber;
+
+const char* WaveformName(Waveform w) {
+  switch (w) {
+    case Waveform::kSin:
+      return "SIN";
+    case Waveform::kSquare:
+      return "SQU";
+    case Waveform::kPulse:
+      return "PULS";
+    case Waveform::kArb:
+      return "ARB";
+    case Waveform::kDc:
+      return "DC";
+  }
+  return "SIN";
+}
+
+std::string ChannelLimits::Validate(const std::string& field) const {
+  std::ostringstream os;
+  if (!(max_vpp >= 0.0)) {
+    os << field << ".max_vpp = " << max_vpp << ": must be >= 0";
+  } else if (!(max_abs_offset_v >= 0.0)) {
+    os << field << ".max_abs_offset_v = " << max_abs_offset_v << ": must be >= 0";
+  } else if (!(min_frequency_hz >= 0.0)) {
+    os << field << ".min_frequency_hz = " << min_frequency_hz << ": must be >= 0";
+  } else if (!(max_frequency_hz >= min_frequency_hz)) {
+    os << field << ".max_frequency_hz = " << max_frequency_hz << ": must be >= min_frequency_hz ("
+       << min_frequency_hz << ")";
+  } else if (!(max_duty > 0.0 && max_duty <= 1.0)) {
+    os << field << ".max_duty = " << max_duty << ": must be in (0, 1]";
+  }
+  return os.str();
+}
+
+std::string CheckLimits(const std::string& channel_name, const ChannelSetup& s,
+                        const ChannelLimits& l) {
+  std::ostringstream os;
+  os.precision(10);
+  const std::string who = channel_name + " (" + l.role + ")";
+  double frequency = s.frequency_hz;
+  double duty = 0.5;
+  if (s.waveform == Waveform::kArb) {
+    if (s.arb_samples.empty() || !(s.arb_sample_rate_sps > 0.0)) {
+      return who + ": arbitrary waveform needs samples and a sample rate > 0";
+    }
+    frequency = s.arb_sample_rate_sps / static_cast<double>(s.arb_samples.size());
+    const auto high =
+        std::count_if(s.arb_samples.begin(), s.arb_samples.end(), [](int16_t v) { return v > 0; });
+    duty = static_cast<double>(high) / static_cast<double>(s.arb_samples.size());
+  } else if (s.waveform == Waveform::kSquare || s.waveform == Waveform::kPulse) {
+    duty = s.square_duty_percent / 100.0;
+  } else if (s.waveform == Waveform::kDc) {
+    duty = s.offset_v > 0.0 ? 1.0 : 0.0;
+  }
+  if (!(s.amplitude_vpp >= 0.0) || s.amplitude_vpp > l.max_vpp) {
+    os << who << ": amplitude_vpp = " << s.amplitude_vpp << " outside the limit [0, " << l.max_vpp
+       << "] Vpp";
+  } else if (!(std::abs(s.offset_v) <= l.max_abs_offset_v)) {
+    os << who << ": offset_v = " << s.offset_v
+       << " outside the limit |offset| <= " << l.max_abs_offset_v << " V";
+  } else if (s.waveform != Waveform::kDc &&
+             !(frequency >= l.min_frequency_hz && frequency <= l.max_frequency_hz)) {
+    os << who << ": frequency_hz = " << frequency << " outside the window [" << l.min_frequency_hz
+       << ", " << l.max_frequency_hz << "] Hz";
+  } else if (duty > l.max_duty + 1e-12) {
+    os << who << ": duty = " << duty << " exceeds max_duty = " << l.max_duty;
+  } else if (!(s.load_ohm > 0.0)) {
+    os << who << ": load_ohm = " << s.load_ohm << " must be > 0 (or inf for high-Z)";
+  }
+  return os.str();
+}
+
+bool IsSupportedIdentity(const scpi::Identity& id) {
+  const bool vendor = id.manufacturer.rfind("Agilent Technologies", 0) == 0 ||
+                      id.manufacturer.rfind("Keysight Technologies", 0) == 0;
+  static const std::regex kModel("^335[0-9][0-9][AB]$");
+  return vendor && std::regex_match(id.model, kModel);
+}
+
+std::string Keysight33500Options::Validate() const {
+  if (std::string e = link.Validate(); !e.empty()) return name + "." + e;
+  for (int c = 0; c < 2; ++c) {
+    const std::string e =
+        limits[c].Validate(name + ".channels." + std::to_string(c + 1) + ".limits");
+    if (!e.empty()) return e;
+  }
+  return "";
+}
+
+namespace {
+
+class Keysight33500 final : public FunctionGenerator {
+ public:
+  Keysight33500(const Keysight33500Options& o, scpi::TranscriptSink transcript)
+      : options_(o), client_(o.link) {
+    if (transcript) client_.SetTranscriptSink(std::move(transcript));
+  }
+
+  const std::string& name() const override { return options_.name; }
+
+  void Open() {
+    client_.Connect();
+    Identify();
+  }
+
+  scpi::Identity Identify() override {
+    const std::string reply = client_.Query("*IDN?");
+    scpi::Identity id;
+    try {
+      id = scpi::ParseIdentity(reply);
+    } catch (const std::invalid_argument& e) {
+      throw GeneratorError(GeneratorError::Kind::kIdentity,
+                           Who() + ": bad *IDN? reply: " + e.what());
+    }
+    if (!IsSupportedIdentity(id)) {
+      throw GeneratorError(
+          GeneratorError::Kind::kIdentity,
+          Who() + " identifies as '" + reply + "', not an Agilent/Keysight 33500-series generator");
+    }
+    identity_ = id;
+    return id;
+  }
+
+  std::string Options() override { return std::string(scpi::Trim(client_.Query("*OPT?"))); }
+
+  void Reset() override {
+    client_.Write("*RST;*CLS");
+    client_.WaitOperationComplete();
+    Check("*RST;*CLS");
+  }
+
+  void ConfigureChannel(int channel, const ChannelSetup& s) override {
+    RequireChannel(channel);
+    const std::string ch_name = options_.name + ".ch" + std::to_string(channel);
+    if (std::string e = CheckLimits(ch_name, s, options_.limits[channel - 1]); !e.empty()) {
+      throw GeneratorError(GeneratorError::Kind::kLimit, "refused: " + e);
+    }
+    const std::string n = std::to_string(channel);
+    const std::string src = "SOUR" + n + ":";
+    const std::string load = std::isinf(s.load_ohm) ? "INF" : FormatNumber(s.load_ohm);
+    Send("OUTP" + n + ":LOAD " + load);
+    if (s.waveform == Waveform::kArb) {
+      const size_t points = s.arb_samples.size();
+      if (points < 8) {
+        throw GeneratorError(GeneratorError::Kind::kLimit,
+                             "refused: " + ch_name + ": arb has " + std::to_string(points) +
+                                 " points, the instrument needs at least 8");
+      }
+      if (points > 1'000'000 && Options().find("MEM") == std::string::npos) {
+        throw GeneratorError(GeneratorError::Kind::kLimit,
+                             "refused: " + ch_name + ": arb has " + std::to_string(points) +
+                                 " points; more than 1 M needs option MEM (*OPT? = '" + Options() +
+                                 "')");
+      }
+      // Explicit byte order; the payload is written in the same order.
+      Send(src + "DATA:VOL:CLE;:FORM:BORD SWAP");
+      client_.WriteBlock(src + "DATA:ARB:DAC " + s.arb_name + ",",
+                         scpi::Int16Payload(s.arb_samples, /*big_endian=*/false));
+      Check(src + "DATA:ARB:DAC " + s.arb_name);
+      Send(src + "FUNC:ARB " + s.arb_name + ";:" + src + "FUNC ARB;:" + src + "FUNC:ARB:SRAT " +
+           FormatNumber(s.arb_sample_rate_sps));
+      Send(src + "VOLT:OFFS 0;:" + src + "FUNC:ARB:PTP " + FormatNumber(s.amplitude_vpp) +
+           ";:" + src + "VOLT:OFFS " + FormatNumber(s.offset_v));
+    } else {
+      std::string cmd = src + "FUNC " + WaveformName(s.waveform);
+      if (s.waveform != Waveform::kDc) cmd += ";:" + src + "FREQ " + FormatNumber(s.frequency_hz);
+      if (s.waveform == Waveform::kSquare) {
+        cmd += ";:" + src + "FUNC:SQU:DCYC " + FormatNumber(s.square_duty_percent);
+      }
+      Send(cmd);
+      Send(src + "VOLT:OFFS 0;:" + src + "VOLT " + FormatNumber(s.amplitude_vpp) + ";:" + src +
+           "VOLT:OFFS " + FormatNumber(s.offset_v));
+      // PHASe applies in continuous mode, BURSt:PHASe to the triggered start (ArmStart).
+      Send(src + "PHAS " + FormatNumber(s.phase_deg) + ";:" + src + "BURS:PHAS " +
+           FormatNumber(s.phase_deg));
+    }
+    Check("configure " + ch_name);
+  }
+
+  void SetOutput(int channel, bool on) override {
+    RequireChannel(channel);
+    const std::string cmd = "OUTP" + std::to_string(channel) + (on ? " ON" : " OFF");
+    Send(cmd);
+    Check(cmd);
+  }
+
+  void SetReference(ReferenceSource source) override {
+    const std::string cmd =
+        std::string("ROSC:SOUR ") + (source == ReferenceSource::kExternal ? "EXT" : "INT");
+    Send(cmd);
+    client_.WaitOperationComplete();
+    Check(cmd);
+  }
+
+  bool ReferenceLocked() override { return scpi::Trim(client_.Query("ROSC:SOUR:CURR?")) == "EXT"; }
+
+  void ArmStart(StartTrigger source, bool trigger_out) override {
+    const std::string src_name = source == StartTrigger::kBus ? "BUS" : "EXT";
+    std::string cmd;
+    for (int c = 1; c <= 2; ++c) {
+      const std::string n = std::to_string(c);
+      cmd += "SOUR" + n + ":BURS:MODE TRIG;NCYC INF;STAT ON;:TRIG" + n + ":SOUR " + src_name + ";:";
+    }
+    cmd += std::string("OUTP:TRIG ") + (trigger_out ? "ON" : "OFF");
+    Send(cmd);
+    Check("arm start trigger (" + src_name + ")");
+  }
+
+  void Trigger() override {
+    Send("*TRG");
+    client_.WaitOperationComplete();
+    Check("*TRG");
+  }
+
+  void SynchronizePhase() override {
+    Send("PHAS:SYNC");
+    Check("PHAS:SYNC");
+  }
+
+  bool SafeState() noexcept override {
+    try {
+      if (!client_.IsConnected()) client_.Connect();
+      client_.Write("OUTP1 OFF;:OUTP2 OFF");
+      const std::string r = client_.Query("OUTP1?;:OUTP2?");
+      return r == "0;0";
+    } catch (...) {
+      return false;
+    }
+  }
+
+ private:
+  std::string Who() const { return "'" + options_.name + "' at " + client_.Endpoint(); }
+
+  void RequireChannel(int channel) const {
+    if (channel != 1 && channel != 2) {
+      throw std::invalid_argument(Who() + ": channel " + std::to_string(channel) +
+                                  " does not exist (1 or 2)");
+    }
+  }
+
+  void Send(const std::string& command) { client_.Write(command); }
+
+  void Check(const std::string& context) {
+    try {
+      client_.CheckErrors(context);
+    } catch (const scpi::ScpiError& e) {
+      if (e.kind() == scpi::ErrorKind::kInstrument) {
+        throw GeneratorError(GeneratorError::Kind::kInstrument, e.what());
+      }
+      throw;
+    }
+  }
+
+  Keysight33500Options options_;
+  scpi::ScpiClient client_;
+  scpi::Identity identity_;
+};
+
+}  // namespace
+
+std::unique_ptr<FunctionGenerator> OpenKeysight33500(const Keysight33500Options& options,
+                                                     scpi::TranscriptSink transcript) {
+  if (std::string e = options.Validate(); !e.empty()) {
+    throw std::invalid_argument("generator options: " + e);
+  }
+  auto gen = std::make_unique<Keysight33500>(options, std::move(transcript));
+  gen->Open();
+  return gen;
+}
+
+}  // namespace msmcal::gen

@@ -1,0 +1,222 @@
+#include "drivers/generator/rig_config.h"
+
+#include <yaml-cpp/yaml.h>
+
+#include <cmath>
+#include <fstream>
+#include <set>
+#include <sstream>
+#include <stdexcept>
+
+#include "drivers/generator/rig_generators.h"
+
+namespace msmcal::gen {
+namespace {
+
+class Reader {
+ public:
+  explicit Reader(std::string origin) : origin_(std::move(origin)) {}
+
+  [[noreturn]] void Fail(const YAML::Node& node, const std::string& field,
+                         const std::string& what) const {
+    std::ostringstream os;
+    os << origin_;
+    if (node.IsDefined() && node.Mark().line >= 0) os << ":" << node.Mark().line + 1;
+    os << ": " << field << ": " << what;
+    throw std::runtime_error(os.str());
+  }
+
+  YAML::Node Map(const YAML::Node& parent, const std::string& key, const std::string& field,
+                 std::set<std::string> allowed) const {
+    const YAML::Node n = parent[key];
+    if (!n) Fail(parent, field, "missing");
+    if (!n.IsMap()) Fail(n, field, "must be a mapping");
+    for (const auto& kv : n) {
+      const std::string k = kv.first.as<std::string>();
+      if (!allowed.count(k)) Fail(kv.first, field + "." + k, "unknown key");
+    }
+    return n;
+  }
+
+  double Number(const YAML::Node& parent, const std::string& key, const std::string& field,
+                std::optional<double> def = std::nullopt) const {
+    const YAML::Node n = parent[key];
+    if (!n) {
+      if (def) return *def;
+      Fail(parent, field, "missing");
+    }
+    const std::string text = n.IsScalar() ? n.Scalar() : "";
+    if (text == "inf" || text == "INF" || text == ".inf") return kHighZ;
+    try {
+      return n.as<double>();
+    } catch (const YAML::Exception&) {
+      Fail(n, field, "must be a number, got '" + text + "'");
+    }
+  }
+
+  int Int(const YAML::Node& parent, const std::string& key, const std::string& field,
+          std::optional<int> def = std::nullopt) const {
+    const YAML::Node n = parent[key];
+    if (!n) {
+      if (def) return *def;
+      Fail(parent, field, "missing");
+    }
+    try {
+      return n.as<int>();
+    } catch (const YAML::Exception&) {
+      Fail(n, field, "must be an integer, got '" + (n.IsScalar() ? n.Scalar() : "") + "'");
+    }
+  }
+
+  std::string String(const YAML::Node& parent, const std::string& key, const std::string& field,
+                     std::optional<std::string> def = std::nullopt) const {
+    const YAML::Node n = parent[key];
+    if (!n) {
+      if (def) return *def;
+      Fail(parent, field, "missing");
+    }
+    if (!n.IsScalar()) Fail(n, field, "must be a string");
+    return n.Scalar();
+  }
+
+ private:
+  std::string origin_;
+};
+
+Keysight33500Options ReadUnit(const Reader& r, const YAML::Node& gens, const std::string& key) {
+  const std::string f = "generators." + key;
+  const YAML::Node u =
+      r.Map(gens, key, f, {"host", "port", "connect_timeout_ms", "io_timeout_ms", "channels"});
+  Keysight33500Options o;
+  o.name = key;
+  o.link.host = r.String(u, "host", f + ".host");
+  o.link.port = r.Int(u, "port", f + ".port");
+  o.link.connect_timeout_ms = r.Int(u, "connect_timeout_ms", f + ".connect_timeout_ms", 3000);
+  o.link.io_timeout_ms = r.Int(u, "io_timeout_ms", f + ".io_timeout_ms", 3000);
+  const YAML::Node chs = r.Map(u, "channels", f + ".channels", {"1", "2"});
+  for (int c = 1; c <= 2; ++c) {
+    const std::string cf = f + ".channels." + std::to_string(c);
+    const YAML::Node ch = r.Map(chs, std::to_string(c), cf,
+                                {"role", "max_vpp", "max_abs_offset_v", "min_frequency_hz",
+                                 "max_frequency_hz", "max_duty"});
+    ChannelLimits& l = o.limits[c - 1];
+    l.role = r.String(ch, "role", cf + ".role");
+    l.max_vpp = r.Number(ch, "max_vpp", cf + ".max_vpp");
+    l.max_abs_offset_v = r.Number(ch, "max_abs_offset_v", cf + ".max_abs_offset_v");
+    l.min_frequency_hz = r.Number(ch, "min_frequency_hz", cf + ".min_frequency_hz");
+    l.max_frequency_hz = r.Number(ch, "max_frequency_hz", cf + ".max_frequency_hz");
+    l.max_duty = r.Number(ch, "max_duty", cf + ".max_duty", 1.0);
+  }
+  return o;
+}
+
+signal::SineDrive ReadSine(const Reader& r, const YAML::Node& drive, const std::string& key) {
+  const std::string f = "generators.signals.drive." + key;
+  const YAML::Node n =
+      r.Map(drive, key, f, {"frequency_hz", "amplitude_vpp", "offset_v", "phase_deg"});
+  signal::SineDrive s;
+  s.frequency_hz = r.Number(n, "frequency_hz", f + ".frequency_hz");
+  s.amplitude_vpp = r.Number(n, "amplitude_vpp", f + ".amplitude_vpp");
+  s.offset_v = r.Number(n, "offset_v", f + ".offset_v", 0.0);
+  s.phase_deg = r.Number(n, "phase_deg", f + ".phase_deg", 0.0);
+  return s;
+}
+
+LogicLevels ReadLevels(const Reader& r, const YAML::Node& sig, const std::string& key) {
+  const std::string f = "generators.signals." + key;
+  const YAML::Node n = r.Map(sig, key, f, {"low_v", "high_v", "load_ohm"});
+  LogicLevels l;
+  l.low_v = r.Number(n, "low_v", f + ".low_v");
+  l.high_v = r.Number(n, "high_v", f + ".high_v");
+  l.load_ohm = r.Number(n, "load_ohm", f + ".load_ohm", kHighZ);
+  return l;
+}
+
+}  // namespace
+
+RigGeneratorConfig ParseRigGeneratorConfig(const std::string& yaml_text,
+                                           const std::string& origin) {
+  YAML::Node root;
+  try {
+    root = YAML::Load(yaml_text);
+  } catch (const YAML::Exception& e) {
+    throw std::runtime_error(origin + ":" + std::to_string(e.mark.line + 1) + ": " + e.msg);
+  }
+  const Reader r(origin);
+  if (!root.IsMap()) r.Fail(root, "(root)", "must be a mapping");
+  const YAML::Node gens = r.Map(root, "generators", "generators", {"unit1", "unit2", "signals"});
+  RigGeneratorConfig c;
+  c.unit1 = ReadUnit(r, gens, "unit1");
+  c.unit2 = ReadUnit(r, gens, "unit2");
+  const YAML::Node sig =
+      r.Map(gens, "signals", "generators.signals", {"drive", "laser", "clock", "trigger"});
+  const YAML::Node drive =
+      r.Map(sig, "drive", "generators.signals.drive", {"fast", "slow", "load_ohm"});
+  c.signals.fast = ReadSine(r, drive, "fast");
+  c.signals.slow = ReadSine(r, drive, "slow");
+  c.signals.coil_load_ohm = r.Number(drive, "load_ohm", "generators.signals.drive.load_ohm", 50.0);
+  c.signals.laser = ReadLevels(r, sig, "laser");
+  c.signals.clock = ReadLevels(r, sig, "clock");
+  const std::string tf = "generators.signals.trigger";
+  const YAML::Node t = r.Map(sig, "trigger", tf,
+                             {"spacing", "min_separation", "max_triggers", "min_points",
+                              "max_points", "max_sample_rate_sps", "pulse_width_s", "max_duty"});
+  signal::TriggerDesignOptions& o = c.signals.trigger;
+  o.spacing = r.Number(t, "spacing", tf + ".spacing", o.spacing);
+  o.min_separation = r.Number(t, "min_separation", tf + ".min_separation", o.min_separation);
+  o.max_triggers = r.Int(t, "max_triggers", tf + ".max_triggers", o.max_triggers);
+  o.min_points = r.Int(t, "min_points", tf + ".min_points", static_cast<int>(o.min_points));
+  o.max_points = r.Int(t, "max_points", tf + ".max_points", static_cast<int>(o.max_points));
+  o.max_sample_rate_sps =
+      r.Number(t, "max_sample_rate_sps", tf + ".max_sample_rate_sps", o.max_sample_rate_sps);
+  o.pulse_width_s = r.Number(t, "pulse_width_s", tf + ".pulse_width_s", o.pulse_width_s);
+  o.max_duty = r.Number(t, "max_duty", tf + ".max_duty", o.max_duty);
+  return c;
+}
+
+RigGeneratorConfig LoadRigGeneratorConfig(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw std::runtime_error(path + ": cannot open the rig configuration");
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ParseRigGeneratorConfig(ss.str(), path);
+}
+
+std::string RigGeneratorConfig::Validate() const {
+  if (std::string e = unit1.Validate(); !e.empty()) return "generators." + e;
+  if (std::string e = unit2.Validate(); !e.empty()) return "generators." + e;
+  if (std::string e = signals.trigger.Validate(); !e.empty()) return "generators.signals." + e;
+  std::ostringstream os;
+  for (const auto& [name, l] :
+       {std::pair{"laser", signals.laser}, std::pair{"clock", signals.clock}}) {
+    if (!(l.high_v > l.low_v)) {
+      os << "generators.signals." << name << ".high_v = " << l.high_v << ": must be > low_v ("
+         << l.low_v << ")";
+      return os.str();
+    }
+  }
+  if (!(signals.coil_load_ohm > 0.0)) {
+    os << "generators.signals.drive.load_ohm = " << signals.coil_load_ohm << ": must be > 0";
+    return os.str();
+  }
+  RigSignalPlan plan;
+  try {
+    plan = PlanRigSignals(signals);
+  } catch (const std::invalid_argument& e) {
+    return std::string("generators.signals: ") + e.what();
+  }
+  const std::pair<const ChannelSetup*, std::pair<const Keysight33500Options*, int>> checks[] = {
+      {&plan.unit1_ch1, {&unit1, 1}},
+      {&plan.unit1_ch2, {&unit1, 2}},
+      {&plan.unit2_ch1, {&unit2, 1}},
+      {&plan.unit2_ch2, {&unit2, 2}}};
+  for (const auto& [setup, where] : checks) {
+    const auto& [unit, ch] = where;
+    const std::string e = CheckLimits("generators." + unit->name + ".ch" + std::to_string(ch),
+                                      *setup, unit->limits[ch - 1]);
+    if (!e.empty()) return e;
+  }
+  return "";
+}
+
+}  // namespace msmcal::gen

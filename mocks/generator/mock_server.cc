@@ -1,0 +1,241 @@
+#include "mocks/generator/mock_server.h"
+
+// clang-format off
+// Boost 1.74's Asio uses std::exchange without including <utility> under C++20.
+#include <utility>
+// clang-format on
+
+#include <boost/asio.hpp>
+#include <deque>
+#include <list>
+#include <mutex>
+#include <stdexcept>
+#include <thread>
+
+#include "mocks/generator/scpi_parser.h"
+
+namespace msmcal::sim {
+
+namespace asio = boost::asio;
+using asio::ip::tcp;
+
+namespace {
+constexpr size_t kMaxPendingBytes = 64u << 20;
+}
+
+struct MockGeneratorServer::Impl {
+  struct Session : std::enable_shared_from_this<Session> {
+    Impl* server;
+    tcp::socket socket;
+    std::string rx;
+    std::deque<std::pair<std::string, bool>> tx;  // bytes, close after
+    char buf[65536];
+    bool closed = false;
+
+    Session(Impl* s, tcp::socket sock) : server(s), socket(std::move(sock)) {}
+
+    void Close() {
+      if (closed) return;
+      closed = true;
+      boost::system::error_code ignored;
+      socket.shutdown(tcp::socket::shutdown_both, ignored);
+      socket.close(ignored);
+    }
+
+    void Read() {
+      auto self = shared_from_this();
+      socket.async_read_some(asio::buffer(buf), [self](boost::system::error_code ec, size_t n) {
+        if (ec) {
+          self->Close();
+          return;
+        }
+        self->rx.append(self->buf, n);
+        self->Drain();
+        if (self->rx.size() > kMaxPendingBytes) self->Close();
+        if (!self->closed) self->Read();
+      });
+    }
+
+    void Drain() {
+      while (!closed) {
+        const auto end = FindMessageEnd(rx);
+        if (!end) return;
+        std::string message = rx.substr(0, *end);
+        rx.erase(0, *end + 1);
+        std::string reply = server->unit.Process(message);
+        if (reply.empty()) continue;
+        reply.push_back('\n');
+        std::optional<Fault> fault = server->TakeFault(message);
+        if (!fault) {
+          Send(std::move(reply), false);
+        } else if (fault->kind == FaultKind::kDelayReply) {
+          std::lock_guard lock(server->mu);
+          server->held.emplace_back(weak_from_this(), std::move(reply));
+        } else if (fault->kind == FaultKind::kDropMidReply) {
+          Send(reply.substr(0, reply.size() / 2), true);
+        } else {
+          Send(std::string("\x01\xfe\xff\x7fGARBAGE\x00\x1b[0m\n", 17), false);
+        }
+      }
+    }
+
+    void Send(std::string bytes, bool close_after) {
+      tx.emplace_back(std::move(bytes), close_after);
+      if (tx.size() == 1) WriteNext();
+    }
+
+    void WriteNext() {
+      if (tx.empty() || closed) return;
+      auto self = shared_from_this();
+      asio::async_write(socket, asio::buffer(tx.front().first),
+                        [self](boost::system::error_code ec, size_t) {
+                          const bool close_after = self->tx.front().second;
+                          self->tx.pop_front();
+                          if (ec || close_after) {
+                            self->Close();
+                            return;
+                          }
+                          self->WriteNext();
+                        });
+    }
+  };
+
+  Mock33520B& unit;
+  int requested_port;
+  int bound_port = 0;
+  asio::io_context io;
+  tcp::acceptor acceptor{io};
+  std::thread thread;
+  std::list<std::weak_ptr<Session>> sessions;  // io thread only
+  std::mutex mu;                               // faults, held
+  std::deque<Fault> faults;
+  std::vector<std::pair<std::weak_ptr<Session>, std::string>> held;
+  std::atomic<uint64_t> accepted{0};
+  bool running = false;
+
+  Impl(Mock33520B& u, int port) : unit(u), requested_port(port) {}
+
+  std::optional<Fault> TakeFault(const std::string& message) {
+    std::lock_guard lock(mu);
+    const std::string upper = Upper(message);
+    for (auto it = faults.begin(); it != faults.end(); ++it) {
+      if (it->match.empty() || upper.find(Upper(it->match)) != std::string::npos) {
+        if (it->skip > 0) {
+          --it->skip;
+          return std::nullopt;
+        }
+        Fault f = *it;
+        faults.erase(it);
+        return f;
+      }
+    }
+    return std::nullopt;
+  }
+
+  void Accept() {
+    acceptor.async_accept([this](boost::system::error_code ec, tcp::socket socket) {
+      if (ec) return;  // acceptor closed
+      boost::system::error_code ignored;
+      socket.set_option(tcp::no_delay(true), ignored);
+      auto session = std::make_shared<Session>(this, std::move(socket));
+      sessions.remove_if([](const std::weak_ptr<Session>& w) { return w.expired(); });
+      sessions.push_back(session);
+      ++accepted;
+      session->Read();
+      Accept();
+    });
+  }
+};
+
+MockGeneratorServer::MockGeneratorServer(Mock33520B& unit, int port)
+    : impl_(std::make_unique<Impl>(unit, port)) {}
+
+MockGeneratorServer::~MockGeneratorServer() { Stop(); }
+
+void MockGeneratorServer::Start() {
+  Impl& s = *impl_;
+  if (s.running) return;
+  boost::system::error_code ec;
+  const tcp::endpoint ep(asio::ip::make_address("127.0.0.1"),
+                         static_cast<unsigned short>(s.requested_port));
+  s.acceptor.open(ep.protocol(), ec);
+  if (!ec) s.acceptor.set_option(tcp::acceptor::reuse_address(true), ec);
+  if (!ec) s.acceptor.bind(ep, ec);
+  if (!ec) s.acceptor.listen(asio::socket_base::max_listen_connections, ec);
+  if (ec) {
+    boost::system::error_code ignored;
+    s.acceptor.close(ignored);
+    throw std::runtime_error("mock generator: cannot listen on 127.0.0.1:" +
+                             std::to_string(s.requested_port) + " (" + ec.message() + ")");
+  }
+  s.bound_port = s.acceptor.local_endpoint().port();
+  s.Accept();
+  s.running = true;
+  s.thread = std::thread([&s] { s.io.run(); });
+}
+
+void MockGeneratorServer::Stop() {
+  Impl& s = *impl_;
+  if (!s.running) return;
+  asio::post(s.io, [&s] {
+    boost::system::error_code ignored;
+    s.acceptor.close(ignored);
+    for (auto& w : s.sessions) {
+      if (auto p = w.lock()) p->Close();
+    }
+    s.io.stop();
+  });
+  s.thread.join();
+  s.running = false;
+}
+
+int MockGeneratorServer::port() const { return impl_->bound_port; }
+
+void MockGeneratorServer::InjectFault(Fault fault) {
+  std::lock_guard lock(impl_->mu);
+  impl_->faults.push_back(std::move(fault));
+}
+
+void MockGeneratorServer::ReleaseDelayedReplies() {
+  Impl& s = *impl_;
+  std::vector<std::pair<std::weak_ptr<Impl::Session>, std::string>> held;
+  {
+    std::lock_guard lock(s.mu);
+    held.swap(s.held);
+  }
+  if (!s.running) return;
+  asio::post(s.io, [held = std::move(held)]() mutable {
+    for (auto& [w, bytes] : held) {
+      if (auto p = w.lock()) p->Send(std::move(bytes), false);
+    }
+  });
+}
+
+uint64_t MockGeneratorServer::ConnectionsAccepted() const { return impl_->accepted; }
+
+MockGeneratorPair::MockGeneratorPair(GeneratorPairOptions options, ClockNs clock_ns)
+    : reference_wired_(options.reference_wired) {
+  if (!clock_ns) {
+    clock_ns = [] {
+      return static_cast<int64_t>(std::chrono::duration_cast<std::chrono::nanoseconds>(
+                                      std::chrono::steady_clock::now().time_since_epoch())
+                                      .count());
+    };
+  }
+  unit1_ = std::make_unique<Mock33520B>(options.unit1, clock_ns);
+  unit2_ = std::make_unique<Mock33520B>(options.unit2, clock_ns);
+  unit1_->SetReferenceInput([] { return false; });  // master runs on its internal reference
+  unit2_->SetReferenceInput([this] { return reference_wired_.load(); });
+  if (options.trigger_wired) unit1_->AddTriggerOutTarget(unit2_.get());
+  server1_ = std::make_unique<MockGeneratorServer>(*unit1_, options.port1);
+  server2_ = std::make_unique<MockGeneratorServer>(*unit2_, options.port2);
+  server1_->Start();
+  server2_->Start();
+}
+
+MockGeneratorPair::~MockGeneratorPair() {
+  server1_->Stop();
+  server2_->Stop();
+}
+
+}  // namespace msmcal::sim

@@ -1,0 +1,775 @@
+#include "processing/solver/pipeline.h"
+
+#include <Eigen/Dense>
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <numeric>
+#include <random>
+#include <set>
+#include <sstream>
+
+#include "processing/geometry/mirror_frame.h"
+
+namespace msmcal::solver {
+namespace {
+
+using dataset::Step2Kind;
+using geometry::Line;
+using geometry::Plane;
+using geometry::Rigid3d;
+
+constexpr double kRadToDeg = 180.0 / M_PI;
+constexpr double kDegToRad = M_PI / 180.0;
+
+std::string SizeText(const dataset::BoardSpec& b) {
+  return std::to_string(b.cols) + "x" + std::to_string(b.rows);
+}
+
+std::vector<Eigen::Vector3d> BoardPoints(const dataset::BoardSpec& b) {
+  std::vector<Eigen::Vector3d> p;
+  for (int r = 0; r < b.rows; ++r)
+    for (int c = 0; c < b.cols; ++c) p.emplace_back(c * b.square_mm, r * b.square_mm, 0.0);
+  return p;
+}
+
+// Best assignment of `n` items to `n` slots minimising sum cost(i, slot): brute force up to 7,
+// greedy above.
+std::vector<int> BestPermutation(int n, const std::function<double(int, int)>& cost) {
+  std::vector<int> perm(n);
+  std::iota(perm.begin(), perm.end(), 0);
+  if (n > 7) {
+    std::vector<int> out(n, -1);
+    std::vector<bool> used(n, false);
+    for (int i = 0; i < n; ++i) {
+      int best = -1;
+      for (int s = 0; s < n; ++s)
+        if (!used[s] && (best < 0 || cost(i, s) < cost(i, best))) best = s;
+      out[i] = best;
+      used[best] = true;
+    }
+    return out;
+  }
+  std::vector<int> best = perm;
+  double best_cost = 1e300;
+  do {
+    double c = 0;
+    for (int i = 0; i < n && c < best_cost; ++i) c += cost(i, perm[i]);
+    if (c < best_cost) {
+      best_cost = c;
+      best = perm;
+    }
+  } while (std::next_permutation(perm.begin(), perm.end()));
+  return best;
+}
+
+Eigen::VectorXd Features(double t, bool slow_on, double wf, double ws, bool harmonics) {
+  Eigen::VectorXd f(harmonics ? 9 : 5);
+  const double m = slow_on ? 1.0 : 0.0;
+  f(0) = 1;
+  f(1) = std::sin(wf * t);
+  f(2) = std::cos(wf * t);
+  f(3) = m * std::sin(ws * t);
+  f(4) = m * std::cos(ws * t);
+  if (harmonics) {
+    f(5) = std::sin(2 * wf * t);
+    f(6) = std::cos(2 * wf * t);
+    f(7) = m * std::sin(2 * ws * t);
+    f(8) = m * std::cos(2 * ws * t);
+  }
+  return f;
+}
+
+// Laser dots land on the board: blobs outside its squares area (board outline corners,
+// reflections) are not dots.
+std::vector<vision::Dot> DotsOnBoard(const std::vector<vision::Dot>& dots,
+                                     const vision::CheckerboardDetection& board,
+                                     vision::BoardSize size) {
+  const auto outline = vision::SquaresOutline(board, size, /*margin_squares=*/0.0);
+  std::vector<vision::Dot> out;
+  for (const auto& d : dots)
+    if (vision::InsideOutline(outline, d.px)) out.push_back(d);
+  return out;
+}
+
+struct Group {
+  int frame = 0;                   // index into the step 2 frame list
+  std::map<int, int> dot_of_beam;  // beam index -> dot index in the frame
+  Plane plane;
+  int slot = 0;  // index into the frame's trigger list
+};
+
+}  // namespace
+
+std::string PipelineOptions::Validate() const {
+  if (std::string e = dots.Validate(); !e.empty()) return "dots." + e;
+  if (std::string e = boards.Validate(); !e.empty()) return "boards." + e;
+  if (std::string e = mle.Validate(); !e.empty()) return "mle." + e;
+  std::ostringstream s;
+  if (!(max_group_residual_px > 0))
+    s << "max_group_residual_px = " << max_group_residual_px << " must be > 0";
+  else if (ransac_iterations < 1)
+    s << "ransac_iterations = " << ransac_iterations << " must be >= 1";
+  else if (!(ransac_inlier_deg > 0))
+    s << "ransac_inlier_deg = " << ransac_inlier_deg << " must be > 0";
+  return s.str();
+}
+
+std::vector<int> AssignTriggers(const std::vector<TriggerFrame>& frames,
+                                const std::vector<TriggerGroup>& groups,
+                                const std::vector<Eigen::Vector2d>& neutral_angles_deg,
+                                double fast_hz, double slow_hz, const PipelineOptions& o,
+                                std::string* note) {
+  const double wf = 2 * M_PI * fast_hz, ws = 2 * M_PI * slow_hz;
+  std::vector<std::vector<int>> of_frame(frames.size());
+  for (size_t g = 0; g < groups.size(); ++g)
+    of_frame[groups[g].frame].push_back(static_cast<int>(g));
+  std::vector<int> slot(groups.size(), 0);
+  auto fit = [&](const std::vector<std::pair<int, int>>& labelled, bool harmonics,
+                 Eigen::MatrixXd* coef) {
+    const int p = harmonics ? 9 : 5;
+    const int n = static_cast<int>(labelled.size() + neutral_angles_deg.size());
+    Eigen::MatrixXd a(n, p);
+    Eigen::MatrixXd y(n, 2);
+    int r = 0;
+    for (const auto& [g, s] : labelled) {
+      const auto& fr = frames[groups[g].frame];
+      a.row(r) = Features(fr.t_s[s], fr.slow_on, wf, ws, harmonics).transpose();
+      y.row(r++) = groups[g].angles_deg.transpose();
+    }
+    for (const auto& na : neutral_angles_deg) {
+      a.row(r).setZero();
+      a(r, 0) = 1;
+      y.row(r++) = na.transpose();
+    }
+    // Small ridge keeps under-determined samples solvable.
+    const Eigen::MatrixXd ata = a.transpose() * a + 1e-9 * Eigen::MatrixXd::Identity(p, p);
+    *coef = ata.ldlt().solve(a.transpose() * y);
+  };
+  auto assign = [&](const Eigen::MatrixXd& coef, bool harmonics, std::vector<int>* out) {
+    const double thr2 = o.ransac_inlier_deg * o.ransac_inlier_deg;
+    double score = 0;
+    for (size_t f = 0; f < frames.size(); ++f) {
+      const auto& gs = of_frame[f];
+      if (gs.empty()) continue;
+      const int n = static_cast<int>(frames[f].t_s.size());
+      std::vector<Eigen::Vector2d> pred(n);
+      for (int s = 0; s < n; ++s)
+        pred[s] =
+            coef.transpose() * Features(frames[f].t_s[s], frames[f].slow_on, wf, ws, harmonics);
+      auto cost = [&](int i, int s) {
+        if (i >= static_cast<int>(gs.size())) return 0.0;
+        return std::min((groups[gs[i]].angles_deg - pred[s]).squaredNorm(), thr2);
+      };
+      const std::vector<int> perm = BestPermutation(n, cost);
+      for (size_t i = 0; i < gs.size(); ++i) {
+        score += cost(static_cast<int>(i), perm[i]);
+        if (out) (*out)[gs[i]] = perm[i];
+      }
+    }
+    return score;
+  };
+  std::vector<int> multi;
+  for (size_t f = 0; f < frames.size(); ++f)
+    if (!of_frame[f].empty()) multi.push_back(static_cast<int>(f));
+  std::mt19937_64 rng(o.seed);
+  Eigen::MatrixXd best_coef;
+  double best_score = 1e300;
+  const int sample = neutral_angles_deg.empty() ? 5 : 4;
+  for (int it = 0; it < o.ransac_iterations && !multi.empty(); ++it) {
+    std::vector<std::pair<int, int>> labelled;
+    for (int k = 0; k < sample; ++k) {
+      const int f = multi[std::uniform_int_distribution<int>(0, multi.size() - 1)(rng)];
+      const auto& gs = of_frame[f];
+      const int g = gs[std::uniform_int_distribution<int>(0, gs.size() - 1)(rng)];
+      const int s = std::uniform_int_distribution<int>(0, frames[f].t_s.size() - 1)(rng);
+      labelled.emplace_back(g, s);
+    }
+    Eigen::MatrixXd coef;
+    fit(labelled, false, &coef);
+    const double score = assign(coef, false, nullptr);
+    if (score < best_score) {
+      best_score = score;
+      best_coef = coef;
+    }
+  }
+  if (multi.empty()) return slot;
+  assign(best_coef, false, &slot);
+  Eigen::MatrixXd coef = best_coef;
+  bool harmonics = false;
+  for (int round = 0; round < 4; ++round) {
+    std::vector<std::pair<int, int>> labelled;
+    for (size_t g = 0; g < groups.size(); ++g) labelled.emplace_back(static_cast<int>(g), slot[g]);
+    harmonics = labelled.size() + neutral_angles_deg.size() >= 18;
+    fit(labelled, harmonics, &coef);
+    assign(coef, harmonics, &slot);
+  }
+  if (note) {
+    double sum2 = 0;
+    for (size_t g = 0; g < groups.size(); ++g) {
+      const auto& fr = frames[groups[g].frame];
+      const Eigen::Vector2d pred =
+          coef.transpose() * Features(fr.t_s[slot[g]], fr.slow_on, wf, ws, harmonics);
+      sum2 += (groups[g].angles_deg - pred).squaredNorm();
+    }
+    std::ostringstream s;
+    s << "trigger assignment: " << groups.size() << " groups in " << multi.size()
+      << " multi-trigger frames, drive-phase model RMS "
+      << std::sqrt(sum2 / std::max<size_t>(1, groups.size())) << " deg";
+    *note = s.str();
+  }
+  return slot;
+}
+
+SolveOutput SolveRecording(const dataset::Recording& rec, const ImageLoader& load,
+                           const PipelineOptions& o) {
+  if (const std::string e = o.Validate(); !e.empty()) throw SolveError("PipelineOptions: " + e);
+  if (const std::string e = rec.camera.Validate(); !e.empty())
+    throw SolveError("camera.yaml: " + e);
+  SolveOutput out;
+  // Errors carry the frames dropped so far: they usually explain the failure.
+  auto fail = [&](const std::string& what) {
+    std::string msg = what;
+    if (!out.dropped.empty()) {
+      msg += "; frames dropped:";
+      for (const auto& d : out.dropped) msg += " [" + d.file + ": " + d.reason + "]";
+    }
+    return SolveError(msg);
+  };
+  // Beams.
+  std::map<int, int> beam_index;
+  std::vector<int> beam_ids;
+  std::vector<bool> is_estimate;
+  for (const auto& b : rec.beams) {
+    beam_index[b.id] = static_cast<int>(beam_ids.size());
+    beam_ids.push_back(b.id);
+    is_estimate.push_back(b.role == dataset::BeamRole::kEstimate);
+  }
+  const int num_beams = static_cast<int>(beam_ids.size());
+  auto beam_of = [&](int id, const std::string& file) {
+    const auto it = beam_index.find(id);
+    if (it == beam_index.end())
+      throw fail("session.yaml: frame " + file + " lists beam " + std::to_string(id) +
+                 " which is not in beams");
+    return it->second;
+  };
+  Observations obs;
+  obs.camera = rec.camera;
+  const auto world_pts = BoardPoints(rec.world_board);
+  const auto sliding_pts = BoardPoints(rec.sliding_board);
+  const vision::BoardSize world_size{rec.world_board.cols, rec.world_board.rows};
+  const vision::BoardSize sliding_size{rec.sliding_board.cols, rec.sliding_board.rows};
+  auto load_image = [&](const std::string& file) {
+    cv::Mat img = load(file);
+    if (img.empty()) throw fail(file + ": cannot read the image");
+    return img;
+  };
+  auto to_obs = [](const vision::Dot& d) { return PixelObs{d.px, d.cov_px2}; };
+
+  // ---------------- Step 1: sliding boards, beams ----------------
+  struct S1 {
+    std::string file;
+    int pose = 0;  // remapped
+    std::vector<int> beams;
+    std::vector<vision::Dot> dots;
+    Rigid3d c1_from_sliding;
+    std::vector<Eigen::Vector3d> dots_in_world;
+    std::vector<int> label;  // beam index per dot, -1 unknown
+  };
+  std::vector<S1> s1;
+  std::map<int, int> pose_remap;
+  std::optional<Rigid3d> c1_from_world;
+  size_t c1_corners = 0;
+  for (const auto& f : rec.step1) {
+    const cv::Mat img = load_image(f.file);
+    const auto boards = vision::DetectCheckerboards(img, {world_size, sliding_size}, o.boards);
+    if (!boards[1]) {
+      out.dropped.push_back(
+          {f.file, "sliding board (" + SizeText(rec.sliding_board) + ") not found"});
+      continue;
+    }
+    const auto dots = DotsOnBoard(vision::DetectDots(img, o.dots), *boards[1], sliding_size);
+    if (dots.size() != f.beams.size()) {
+      out.dropped.push_back({f.file, "found " + std::to_string(dots.size()) +
+                                         " laser dots, expected " + std::to_string(f.beams.size()) +
+                                         " (one per listed beam)"});
+      continue;
+    }
+    const auto c1s = SolvePlanarPnP(rec.camera, sliding_pts, boards[1]->corners_px);
+    if (!c1s) {
+      out.dropped.push_back({f.file, "PnP of the sliding board failed"});
+      continue;
+    }
+    if (boards[0]) {
+      obs.corners.push_back({BoardView::kC1World, -1, world_pts, boards[0]->corners_px});
+      if (world_pts.size() > c1_corners) {
+        if (auto t = SolvePlanarPnP(rec.camera, world_pts, boards[0]->corners_px)) {
+          c1_from_world = t;
+          c1_corners = world_pts.size();
+        }
+      }
+    } else {
+      out.notes.push_back(f.file +
+                          ": world board not found; frame used for the sliding board only");
+    }
+    const int pose = pose_remap.emplace(f.pose, static_cast<int>(pose_remap.size())).first->second;
+    obs.corners.push_back({BoardView::kC1Sliding, pose, sliding_pts, boards[1]->corners_px});
+    S1 s;
+    s.file = f.file;
+    s.pose = pose;
+    for (int id : f.beams) s.beams.push_back(beam_of(id, f.file));
+    s.dots = dots;
+    s.c1_from_sliding = *c1s;
+    s.label.assign(dots.size(), -1);
+    s1.push_back(std::move(s));
+  }
+  if (!c1_from_world)
+    throw fail("step1: the world board (" + SizeText(rec.world_board) +
+               ") was not found in any step 1 image");
+  obs.num_poses = static_cast<int>(pose_remap.size());
+  const Rigid3d world_from_c1 = c1_from_world->Inverse();
+  Eigen::Vector3d sliding_z = Eigen::Vector3d::Zero();
+  std::vector<Rigid3d> world_from_pose(obs.num_poses);
+  for (auto& s : s1) {
+    world_from_pose[s.pose] = world_from_c1 * s.c1_from_sliding;
+    sliding_z += world_from_pose[s.pose].rotation * Eigen::Vector3d::UnitZ();
+    for (const auto& d : s.dots) {
+      const auto p = BackProjectToBoard(rec.camera, s.c1_from_sliding, d.px);
+      s.dots_in_world.push_back(p ? world_from_pose[s.pose] * *p : Eigen::Vector3d::Zero());
+    }
+  }
+  // Identification frames: one beam, one dot.
+  std::vector<std::vector<Eigen::Vector3d>> beam_points(num_beams);
+  std::vector<std::vector<int>> beam_poses(num_beams);
+  std::vector<bool> done(s1.size(), false);
+  for (size_t k = 0; k < s1.size(); ++k) {
+    if (s1[k].beams.size() != 1) continue;
+    s1[k].label[0] = s1[k].beams[0];
+    beam_points[s1[k].beams[0]].push_back(s1[k].dots_in_world[0]);
+    beam_poses[s1[k].beams[0]].push_back(s1[k].pose);
+    done[k] = true;
+  }
+  // Other frames, nearest to already labelled poses first: predict each beam's dot on the
+  // frame's sliding plane (line through >= 2 poses, else the labelled point) and take the best
+  // permutation.
+  for (;;) {
+    int next = -1;
+    double next_dist = 1e300;
+    for (size_t k = 0; k < s1.size(); ++k) {
+      if (done[k]) continue;
+      double dist = 1e300;
+      for (int b : s1[k].beams)
+        for (size_t q = 0; q < beam_points[b].size(); ++q)
+          dist =
+              std::min(dist, (world_from_pose[s1[k].pose].translation - beam_points[b][q]).norm());
+      if (dist < next_dist) {
+        next_dist = dist;
+        next = static_cast<int>(k);
+      }
+    }
+    if (next < 0) break;
+    S1& s = s1[next];
+    done[next] = true;
+    std::vector<Eigen::Vector3d> pred;
+    bool ok = true;
+    const Plane plane_w =
+        geometry::TransformPlane(world_from_pose[s.pose], Plane{Eigen::Vector3d::UnitZ(), 0});
+    for (int b : s.beams) {
+      if (beam_points[b].empty()) {
+        ok = false;
+        break;
+      }
+      std::set<int> distinct(beam_poses[b].begin(), beam_poses[b].end());
+      if (distinct.size() >= 2) {
+        const auto x = geometry::IntersectLinePlane(geometry::FitLine(beam_points[b]), plane_w);
+        pred.push_back(x ? *x : beam_points[b].back());
+      } else {
+        pred.push_back(beam_points[b].back());
+      }
+    }
+    if (!ok) {
+      out.dropped.push_back({s.file,
+                             "cannot tell its beams apart: a listed beam has no "
+                             "identification frame"});
+      continue;
+    }
+    const int n = static_cast<int>(s.dots.size());
+    const auto perm = BestPermutation(
+        n, [&](int i, int slot) { return (pred[i] - s.dots_in_world[slot]).squaredNorm(); });
+    for (int i = 0; i < n; ++i) {
+      s.label[perm[i]] = s.beams[i];
+      beam_points[s.beams[i]].push_back(s.dots_in_world[perm[i]]);
+      beam_poses[s.beams[i]].push_back(s.pose);
+    }
+  }
+  for (const auto& s : s1)
+    for (size_t i = 0; i < s.dots.size(); ++i)
+      if (s.label[i] >= 0) obs.sliding_dots.push_back({s.pose, s.label[i], to_obs(s.dots[i])});
+  std::vector<Line> beams0(num_beams);
+  for (int b = 0; b < num_beams; ++b) {
+    std::set<int> distinct(beam_poses[b].begin(), beam_poses[b].end());
+    if (distinct.size() < 2)
+      throw fail("step1: beam " + std::to_string(beam_ids[b]) + " has dots on " +
+                 std::to_string(distinct.size()) + " sliding pose(s); needs >= 2");
+    beams0[b] = FitBeam(beam_points[b], sliding_z);
+  }
+  obs.num_beams = num_beams;
+
+  // ---------------- Step 2: world board, reflected dots, groups ----------------
+  struct S2 {
+    const dataset::Step2Frame* frame = nullptr;
+    std::vector<vision::Dot> dots;
+    std::vector<Eigen::Vector3d> dots_in_world;
+  };
+  std::vector<S2> s2;
+  std::optional<Rigid3d> c2_from_world;
+  for (const auto& f : rec.step2) {
+    const cv::Mat img = load_image(f.file);
+    const auto board = vision::DetectCheckerboard(img, world_size, o.boards);
+    if (!board) {
+      out.dropped.push_back({f.file, "world board (" + SizeText(rec.world_board) + ") not found"});
+      continue;
+    }
+    const size_t triggers = f.kind == Step2Kind::kNeutral ? 1 : f.triggers.size();
+    const auto dots = DotsOnBoard(vision::DetectDots(img, o.dots), *board, world_size);
+    if (dots.size() != triggers * f.beams.size()) {
+      out.dropped.push_back(
+          {f.file, "found " + std::to_string(dots.size()) + " laser dots, expected " +
+                       std::to_string(triggers * f.beams.size()) + " (" + std::to_string(triggers) +
+                       " trigger(s) x " + std::to_string(f.beams.size()) + " beam(s))"});
+      continue;
+    }
+    obs.corners.push_back({BoardView::kC2World, -1, world_pts, board->corners_px});
+    if (!c2_from_world) c2_from_world = SolvePlanarPnP(rec.camera, world_pts, board->corners_px);
+    s2.push_back({&f, dots, {}});
+  }
+  if (!c2_from_world)
+    throw fail("step2: the world board (" + SizeText(rec.world_board) +
+               ") was not found in any usable step 2 image");
+  for (auto& s : s2)
+    for (const auto& d : s.dots) {
+      const auto p = BackProjectToBoard(rec.camera, *c2_from_world, d.px);
+      s.dots_in_world.push_back(p.value_or(Eigen::Vector3d::Zero()));
+    }
+  std::vector<Group> groups;
+  for (size_t fi = 0; fi < s2.size(); ++fi) {
+    const S2& s = s2[fi];
+    std::vector<int> e, v;
+    for (int id : s.frame->beams)
+      (is_estimate[beam_of(id, s.frame->file)] ? e : v).push_back(beam_of(id, s.frame->file));
+    if (e.size() < 2) {
+      out.dropped.push_back({s.frame->file, "needs >= 2 beams with role estimate"});
+      continue;
+    }
+    const int n = static_cast<int>(s.dots.size());
+    const size_t want = s.frame->kind == Step2Kind::kNeutral ? 1 : s.frame->triggers.size();
+    struct Candidate {
+      double score;
+      std::map<int, int> dot_of_beam;
+      Plane plane;
+    };
+    std::vector<Candidate> cands;
+    std::vector<int> tuple(e.size(), 0);
+    std::function<void(size_t)> rec_tuple = [&](size_t k) {
+      if (k == e.size()) {
+        std::vector<Line> lines;
+        std::vector<Eigen::Vector3d> xs;
+        for (size_t i = 0; i < e.size(); ++i) {
+          lines.push_back(beams0[e[i]]);
+          xs.push_back(s.dots_in_world[tuple[i]]);
+        }
+        const auto plane = InitialMirrorPlane(lines, xs);
+        if (!plane) return;
+        Candidate c{0, {}, *plane};
+        for (size_t i = 0; i < e.size(); ++i) {
+          const auto px = PredictReflectedDot(rec.camera, *c2_from_world, beams0[e[i]], *plane);
+          if (!px) return;
+          c.score += (*px - s.dots[tuple[i]].px).norm();
+          c.dot_of_beam[e[i]] = tuple[i];
+        }
+        for (int b : v) {
+          const auto px = PredictReflectedDot(rec.camera, *c2_from_world, beams0[b], *plane);
+          if (!px) return;
+          int best = -1;
+          for (int d = 0; d < n; ++d) {
+            if (std::find(tuple.begin(), tuple.end(), d) != tuple.end()) continue;
+            if (best < 0 || (*px - s.dots[d].px).norm() < (*px - s.dots[best].px).norm()) best = d;
+          }
+          if (best < 0) return;
+          c.score += (*px - s.dots[best].px).norm();
+          c.dot_of_beam[b] = best;
+        }
+        c.score /= static_cast<double>(e.size() + v.size());
+        cands.push_back(std::move(c));
+        return;
+      }
+      for (int d = 0; d < n; ++d) {
+        if (std::find(tuple.begin(), tuple.begin() + k, d) != tuple.begin() + k) continue;
+        tuple[k] = d;
+        rec_tuple(k + 1);
+      }
+    };
+    rec_tuple(0);
+    std::sort(cands.begin(), cands.end(),
+              [](const Candidate& a, const Candidate& b) { return a.score < b.score; });
+    std::vector<bool> used(n, false);
+    std::vector<Group> accepted;
+    for (const auto& c : cands) {
+      if (accepted.size() == want || c.score > o.max_group_residual_px) break;
+      bool free = true;
+      for (const auto& [b, d] : c.dot_of_beam) free = free && !used[d];
+      std::set<int> distinct;
+      for (const auto& [b, d] : c.dot_of_beam) distinct.insert(d);
+      if (!free || distinct.size() != c.dot_of_beam.size()) continue;
+      for (const auto& [b, d] : c.dot_of_beam) used[d] = true;
+      accepted.push_back(Group{static_cast<int>(fi), c.dot_of_beam, c.plane, 0});
+    }
+    if (accepted.size() != want) {
+      out.dropped.push_back({s.frame->file, "could group only " + std::to_string(accepted.size()) +
+                                                " of " + std::to_string(want) +
+                                                " trigger(s) into consistent mirror planes"});
+      continue;
+    }
+    for (auto& g : accepted) groups.push_back(std::move(g));
+  }
+  // Provisional home frame for the trigger assignment.
+  std::vector<Plane> neutral_planes, fast_planes;
+  for (const auto& g : groups) {
+    if (s2[g.frame].frame->kind == Step2Kind::kNeutral) neutral_planes.push_back(g.plane);
+    if (s2[g.frame].frame->kind == Step2Kind::kFastOnly) fast_planes.push_back(g.plane);
+  }
+  Eigen::Vector3d n0 = Eigen::Vector3d::Zero();
+  for (const auto& p : neutral_planes.empty() ? std::vector<Plane>{} : neutral_planes) n0 += p.n;
+  if (neutral_planes.empty())
+    for (const auto& g : groups) n0 += g.plane.n;
+  if (groups.empty()) throw fail("step2: no usable frame with reflected dots");
+  n0.normalize();
+  const Eigen::Vector3d fast0 =
+      fast_planes.size() >= 2 ? geometry::FastAxisFromPlanes(fast_planes) : TangentBasis(n0).col(0);
+  const Rigid3d provisional = geometry::MirrorHomeFrame(n0, fast0, Eigen::Vector3d::Zero());
+  auto angles_of = [&](const Plane& p) {
+    const auto pose = geometry::PoseFromWorldPlane(provisional, p);
+    return Eigen::Vector2d(pose.alpha_rad * kRadToDeg, pose.beta_rad * kRadToDeg);
+  };
+  {
+    std::vector<TriggerFrame> tframes(s2.size());
+    std::vector<TriggerGroup> tgroups;
+    std::vector<int> multi_index;
+    std::map<int, double> t_of_j;
+    for (const auto& t : rec.triggers) t_of_j[t.j] = t.t_s;
+    for (size_t f = 0; f < s2.size(); ++f) {
+      tframes[f].slow_on = s2[f].frame->kind == Step2Kind::kScan;
+      for (int j : s2[f].frame->triggers) {
+        if (!t_of_j.count(j))
+          throw fail("session.yaml: frame " + s2[f].frame->file + " lists trigger " +
+                     std::to_string(j) + " which is not in triggers");
+        tframes[f].t_s.push_back(t_of_j[j]);
+      }
+    }
+    for (size_t g = 0; g < groups.size(); ++g) {
+      const auto* fr = s2[groups[g].frame].frame;
+      if (fr->kind == Step2Kind::kNeutral || fr->triggers.size() <= 1) continue;
+      tgroups.push_back({groups[g].frame, angles_of(groups[g].plane)});
+      multi_index.push_back(static_cast<int>(g));
+    }
+    std::vector<Eigen::Vector2d> neutral_angles;
+    for (const auto& p : neutral_planes) neutral_angles.push_back(angles_of(p));
+    if (!tgroups.empty()) {
+      std::string note;
+      const auto slots =
+          AssignTriggers(tframes, tgroups, neutral_angles, rec.drive.fast.frequency_hz,
+                         rec.drive.slow.frequency_hz, o, &note);
+      for (size_t k = 0; k < multi_index.size(); ++k) groups[multi_index[k]].slot = slots[k];
+      out.notes.push_back(note);
+    }
+  }
+  // Planes: one per (kind, j); neutral frames share one plane.
+  std::map<std::pair<int, int>, int> plane_of_key;
+  std::vector<std::pair<Step2Kind, int>> plane_keys;
+  std::vector<ReflectedDot> validation_dots;
+  for (const auto& g : groups) {
+    const auto* fr = s2[g.frame].frame;
+    const int j = fr->kind == Step2Kind::kNeutral ? -1 : fr->triggers[g.slot];
+    const auto key = std::make_pair(static_cast<int>(fr->kind), j);
+    auto it = plane_of_key.find(key);
+    if (it == plane_of_key.end()) {
+      it = plane_of_key.emplace(key, static_cast<int>(plane_keys.size())).first;
+      plane_keys.emplace_back(fr->kind, j);
+    }
+    for (const auto& [b, d] : g.dot_of_beam) {
+      const ReflectedDot rd{it->second, b, to_obs(s2[g.frame].dots[d])};
+      (is_estimate[b] ? obs.reflected_dots : validation_dots).push_back(rd);
+    }
+  }
+  obs.num_planes = static_cast<int>(plane_keys.size());
+  for (const auto& [kind, j] : plane_keys) {
+    if (kind == Step2Kind::kNeutral) ++out.num_neutral_planes;
+    if (kind == Step2Kind::kFastOnly) ++out.num_fast_only_planes;
+    if (kind == Step2Kind::kScan) ++out.num_scan_planes;
+  }
+  if (out.num_neutral_planes == 0) throw fail("step2: no usable neutral frame (needed for {0})");
+  if (out.num_fast_only_planes < 2)
+    throw fail("step2: " + std::to_string(out.num_fast_only_planes) +
+               " usable fast_only mirror planes; {0} needs >= 2");
+
+  // ---------------- Estimation ----------------
+  std::string err;
+  const auto init = InitialEstimate(obs, &err);
+  if (!init) throw fail("initial values: " + err);
+  out.mle = SolveMle(obs, *init, o.mle);
+  if (!out.mle.usable) throw fail("maximum-likelihood solve failed: " + out.mle.message);
+  const Estimate& est = out.mle.estimate;
+
+  // {0}.
+  std::vector<Plane> fast, all;
+  Plane neutral;
+  for (int p = 0; p < obs.num_planes; ++p) {
+    all.push_back(est.planes[p]);
+    if (plane_keys[p].first == Step2Kind::kNeutral) neutral = est.planes[p];
+    if (plane_keys[p].first == Step2Kind::kFastOnly) fast.push_back(est.planes[p]);
+  }
+  out.world_from_mirror0 = geometry::MirrorHomeFrame(neutral.n, geometry::FastAxisFromPlanes(fast),
+                                                     geometry::RotationCentreFromPlanes(all));
+  const Eigen::Vector3d x_o = out.world_from_mirror0.translation;
+
+  // Rows.
+  std::map<int, double> t_of_j;
+  for (const auto& t : rec.triggers) t_of_j[t.j] = t.t_s;
+  auto pose_vec = [&](const Plane& p) {
+    const auto pose = geometry::PoseFromWorldPlane(out.world_from_mirror0, p);
+    return Eigen::Vector3d(pose.alpha_rad * kRadToDeg, pose.beta_rad * kRadToDeg, pose.trans_mm);
+  };
+  std::vector<int> scan_planes;
+  for (int p = 0; p < obs.num_planes; ++p)
+    if (plane_keys[p].first == Step2Kind::kScan) scan_planes.push_back(p);
+  std::sort(scan_planes.begin(), scan_planes.end(),
+            [&](int a, int b) { return plane_keys[a].second < plane_keys[b].second; });
+  for (int p : scan_planes) {
+    dataset::MirrorPlaneRow row;
+    row.j = plane_keys[p].second;
+    row.t_s = t_of_j[row.j];
+    row.plane_in_world = est.planes[p];
+    const Eigen::Vector3d v = pose_vec(est.planes[p]);
+    row.alpha_deg = v(0);
+    row.beta_deg = v(1);
+    row.trans_mm = v(2);
+    // Propagate the chart covariance (central differences).
+    Eigen::Matrix3d jac;
+    for (int k = 0; k < 3; ++k) {
+      Eigen::Vector3d h = Eigen::Vector3d::Zero();
+      h(k) = 1e-6;
+      jac.col(k) = (pose_vec(PlaneFromChart(est.planes[p], h)) -
+                    pose_vec(PlaneFromChart(est.planes[p], -h))) /
+                   2e-6;
+    }
+    const Eigen::Matrix3d cov = jac * out.mle.plane_cov[p] * jac.transpose();
+    row.sigma_alpha_deg = std::sqrt(cov(0, 0));
+    row.sigma_beta_deg = std::sqrt(cov(1, 1));
+    row.sigma_trans_mm = std::sqrt(cov(2, 2));
+    out.planes.push_back(row);
+  }
+  for (int b = 0; b < num_beams; ++b) {
+    const Line& l = est.beams[b];
+    out.beams.push_back({beam_ids[b], l.PointAt(l.Parameter(x_o)), l.v});
+  }
+  // Spanning angle of the first two estimate beams on the scan planes.
+  std::vector<int> est_beams;
+  for (int b = 0; b < num_beams; ++b)
+    if (is_estimate[b]) est_beams.push_back(b);
+  {
+    std::map<std::pair<int, int>, Eigen::Vector3d> dot_world;
+    for (const auto& r : obs.reflected_dots)
+      if (auto x = BackProjectToBoard(rec.camera, est.c2_from_world, r.obs.px))
+        dot_world[{r.plane, r.beam}] = *x;
+    double sum = 0;
+    int cnt = 0;
+    for (int p : scan_planes) {
+      const auto a = dot_world.find({p, est_beams[0]}), b = dot_world.find({p, est_beams[1]});
+      if (a == dot_world.end() || b == dot_world.end()) continue;
+      const Line& la = est.beams[est_beams[0]];
+      const Line& lb = est.beams[est_beams[1]];
+      const Eigen::Vector3d na = la.v.cross(a->second) + la.m, nb = lb.v.cross(b->second) + lb.m;
+      double ang = geometry::AngleBetween(na, nb) * kRadToDeg;
+      if (ang > 90) ang = 180 - ang;
+      sum += ang;
+      ++cnt;
+    }
+    out.mean_spanning_angle_deg = cnt ? sum / cnt : 0;
+  }
+  // Baseline and validation.
+  out.baseline = FitBaseline(est.beams, est_beams, obs.reflected_dots, obs.num_planes, rec.camera,
+                             est.c2_from_world);
+  double s_deg = 0, s_px = 0, sb_deg = 0, sb_px = 0, s_norm = 0;
+  auto angular_error = [&](const Line& beam, const Plane& mirror, const Eigen::Vector2d& obs_px,
+                           const Eigen::Vector2d& pred_px) {
+    const auto h = geometry::IntersectLinePlane(beam, mirror);
+    const auto xo = BackProjectToBoard(rec.camera, est.c2_from_world, obs_px);
+    const auto xp = BackProjectToBoard(rec.camera, est.c2_from_world, pred_px);
+    if (!h || !xo || !xp) return 0.0;
+    return geometry::AngleBetween(*xo - *h, *xp - *h) * kRadToDeg;
+  };
+  for (const auto& vd : validation_dots) {
+    if (plane_keys[vd.plane].first != Step2Kind::kScan) continue;
+    const Plane& mirror = est.planes[vd.plane];
+    const Line& beam = est.beams[vd.beam];
+    const auto pred = PredictReflectedDot(rec.camera, est.c2_from_world, beam, mirror);
+    const auto pred_b =
+        PredictReflectedDot(rec.camera, est.c2_from_world, beam, out.baseline.planes[vd.plane]);
+    if (!pred || !pred_b) continue;
+    ValidationDetail d;
+    const int j = plane_keys[vd.plane].second;
+    d.row = {beam_ids[vd.beam], j, (*pred - vd.obs.px).norm(),
+             angular_error(beam, mirror, vd.obs.px, *pred)};
+    d.baseline = {beam_ids[vd.beam], j, (*pred_b - vd.obs.px).norm(),
+                  angular_error(beam, out.baseline.planes[vd.plane], vd.obs.px, *pred_b)};
+    // eq. 10: J Sigma J^T over [plane (3), c2 (6), beam (4)] plus the dot's own covariance.
+    const Eigen::MatrixXd joint = out.mle.JointCovariance(vd.plane);
+    std::vector<int> idx = {0, 1, 2};
+    for (int k = 0; k < 6; ++k) idx.push_back(3 + out.mle.OffsetC2() + k);
+    for (int k = 0; k < 4; ++k) idx.push_back(3 + out.mle.OffsetBeam(vd.beam) + k);
+    Eigen::MatrixXd jac(2, 13);
+    for (int k = 0; k < 13; ++k) {
+      auto eval = [&](double h) {
+        Eigen::Vector3d xp = Eigen::Vector3d::Zero();
+        Eigen::Matrix<double, 6, 1> xt = Eigen::Matrix<double, 6, 1>::Zero();
+        Eigen::Vector4d xb = Eigen::Vector4d::Zero();
+        if (k < 3)
+          xp(k) = h;
+        else if (k < 9)
+          xt(k - 3) = h;
+        else
+          xb(k - 9) = h;
+        return PredictReflectedDot(rec.camera, TransformFromChart(est.c2_from_world, xt),
+                                   BeamFromChart(beam, xb), PlaneFromChart(mirror, xp))
+            .value_or(*pred);
+      };
+      jac.col(k) = (eval(1e-6) - eval(-1e-6)) / 2e-6;
+    }
+    Eigen::MatrixXd sub(13, 13);
+    for (int a = 0; a < 13; ++a)
+      for (int b = 0; b < 13; ++b) sub(a, b) = joint(idx[a], idx[b]);
+    const Eigen::Matrix2d c = jac * sub * jac.transpose() + vd.obs.cov_px2;
+    const Eigen::Vector2d e = vd.obs.px - *pred;
+    d.predicted_sigma_px = std::sqrt(c.trace() / 2);
+    d.normalised_error = std::sqrt(e.dot(c.ldlt().solve(e)) / 2);
+    s_deg += d.row.err_deg * d.row.err_deg;
+    s_px += d.row.err_px * d.row.err_px;
+    sb_deg += d.baseline.err_deg * d.baseline.err_deg;
+    sb_px += d.baseline.err_px * d.baseline.err_px;
+    s_norm += d.normalised_error * d.normalised_error;
+    out.validation.push_back(d);
+  }
+  std::sort(out.validation.begin(), out.validation.end(), [](const auto& a, const auto& b) {
+    return std::make_pair(a.row.beam, a.row.j) < std::make_pair(b.row.beam, b.row.j);
+  });
+  if (const double n = static_cast<double>(out.validation.size()); n > 0) {
+    out.rms_validation_deg = std::sqrt(s_deg / n);
+    out.rms_validation_px = std::sqrt(s_px / n);
+    out.rms_baseline_deg = std::sqrt(sb_deg / n);
+    out.rms_baseline_px = std::sqrt(sb_px / n);
+    out.rms_normalised_validation = std::sqrt(s_norm / n);
+  }
+  return out;
+}
+
+}  // namespace msmcal::solver

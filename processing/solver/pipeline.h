@@ -1,0 +1,99 @@
+#pragma once
+// The whole mirror-pose solve of an interchange recording (MSM paper Sec. V-A): boards and dots
+// in every image, association of dots to beams, sliding poses and trigger indices, initial
+// values, the MLE with per-plane covariance, the mirror home frame {0}, validation on held-out
+// beams and the baseline model of Table I. Pure computation: images come through `ImageLoader`,
+// results go back as values (the CLI writes results/).
+//
+// Failure model: bad or insufficient input throws SolveError naming the file and what is wrong
+// ("step1/0003.png: sliding board (13x8) not found"); frames that cannot be used but are not
+// needed are dropped and listed in SolveOutput::dropped with the reason.
+
+#include <functional>
+#include <opencv2/core.hpp>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "processing/dataset/recording.h"
+#include "processing/solver/initialise.h"
+#include "processing/solver/mle.h"
+#include "processing/vision/checkerboard.h"
+#include "processing/vision/dots.h"
+
+namespace msmcal::solver {
+
+class SolveError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+// Loads an image by its file name as written in session.yaml ("step1/0000.png"). Returns an empty
+// Mat if it cannot be read.
+using ImageLoader = std::function<cv::Mat(const std::string& file)>;
+
+struct PipelineOptions {
+  vision::DotOptions dots;
+  vision::CheckerboardOptions boards;
+  MleOptions mle;
+  // Grouping of reflected dots into one mirror plane: worst accepted mean pixel inconsistency.
+  double max_group_residual_px = 15.0;
+  // Trigger-index assignment inside multi-trigger frames (RANSAC over a drive-phase model).
+  int ransac_iterations = 3000;
+  double ransac_inlier_deg = 0.4;
+  uint64_t seed = 1;
+  std::string Validate() const;
+};
+
+struct DroppedFrame {
+  std::string file;
+  std::string reason;
+};
+
+struct ValidationDetail {
+  dataset::ValidationRow row;       // proposed model
+  dataset::ValidationRow baseline;  // baseline model (same beam and j)
+  double predicted_sigma_px = 0;    // eq. 10: sqrt of the mean eigenvalue of the 2x2 covariance
+  double normalised_error = 0;      // sqrt(e^T C^-1 e / 2)
+};
+
+struct SolveOutput {
+  std::vector<dataset::MirrorPlaneRow> planes;  // scan planes, ascending j
+  std::vector<dataset::BeamRow> beams;          // every beam (estimate and validate)
+  std::vector<ValidationDetail> validation;
+  std::vector<DroppedFrame> dropped;
+  std::vector<std::string> notes;  // what the solver decided (associations, counts)
+  geometry::Rigid3d world_from_mirror0;
+  BaselineModel baseline;
+  MleResult mle;  // estimate, covariances, Ceres figures
+  double mean_spanning_angle_deg = 0;
+  double rms_validation_deg = 0, rms_validation_px = 0;
+  double rms_baseline_deg = 0, rms_baseline_px = 0;
+  double rms_normalised_validation = 0;
+  int num_neutral_planes = 0, num_fast_only_planes = 0, num_scan_planes = 0;
+};
+
+SolveOutput SolveRecording(const dataset::Recording& recording, const ImageLoader& load,
+                           const PipelineOptions& options = {});
+
+// Trigger-index assignment, exposed for tests. Each group is one mirror plane from a frame with
+// several triggers; its pose angles (deg) are in a provisional home frame. For each frame, finds
+// the permutation of its trigger indices that best fits the model
+//   angle_k(t) = c_k + sum over axes a, harmonics h of (s sin(h w_a t) + c cos(h w_a t)),
+// with the slow axis off in fast_only frames. Returns, per group, the assigned index into its
+// frame's trigger list. `groups_of_frame[f]` lists the group indices of frame f.
+struct TriggerGroup {
+  int frame = 0;
+  Eigen::Vector2d angles_deg = Eigen::Vector2d::Zero();
+};
+struct TriggerFrame {
+  std::vector<double> t_s;  // trigger times of the frame
+  bool slow_on = true;      // false for fast_only
+};
+std::vector<int> AssignTriggers(const std::vector<TriggerFrame>& frames,
+                                const std::vector<TriggerGroup>& groups,
+                                const std::vector<Eigen::Vector2d>& neutral_angles_deg,
+                                double fast_hz, double slow_hz, const PipelineOptions& options,
+                                std::string* note);
+
+}  // namespace msmcal::solver

@@ -1,0 +1,64 @@
+#pragma once
+// Checkerboard detection with the interchange format's canonical corner order.
+//
+// Board convention (interchange-format.md; the renderer draws exactly this): the square whose
+// minimum inner corner is (i, j), i in [-1, cols-1], j in [-1, rows-1], is dark iff (i + j) is
+// even; board frame X along the cols direction, Y along rows, Z = X x Y into the board (away
+// from the camera). Corners are returned as index r * cols + c for board point
+// (c * square, r * square, 0), whatever the board's rotation in the image.
+//
+// Speed: the board is found on a downscaled copy (cv::findChessboardCornersSB) and refined at
+// full resolution with cv::cornerSubPix.
+
+#include <Eigen/Core>
+#include <opencv2/core.hpp>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace msmcal::vision {
+
+struct BoardSize {
+  int cols = 0;  // inner corners along X
+  int rows = 0;  // inner corners along Y
+};
+
+struct CheckerboardOptions {
+  // The coarse search runs on an image whose longer side is at most this many pixels.
+  int coarse_max_side_px = 1400;
+  std::string Validate() const;
+};
+
+struct CheckerboardDetection {
+  std::vector<Eigen::Vector2d> corners_px;  // canonical order, size cols * rows
+};
+
+// Finds one board of exactly `size` in `image` (8/16-bit, 1 or 3 channels). `mask` (optional,
+// CV_8U, same size, nonzero = usable) hides regions such as an already found board. Empty when
+// not found.
+std::optional<CheckerboardDetection> DetectCheckerboard(const cv::Mat& image, BoardSize size,
+                                                        const CheckerboardOptions& options = {},
+                                                        const cv::Mat& mask = cv::Mat());
+
+// Finds several boards of different sizes in one image: the one with more corners first, then the
+// others with the found boards masked out. Result i corresponds to sizes[i].
+std::vector<std::optional<CheckerboardDetection>> DetectCheckerboards(
+    const cv::Mat& image, const std::vector<BoardSize>& sizes,
+    const CheckerboardOptions& options = {});
+
+// Reorders a grid of corners (row-major rows x cols, as OpenCV returns them) into the canonical
+// order using the handedness in the image and the colour of the outer squares in `gray` (8-bit).
+std::vector<Eigen::Vector2d> CanonicalCornerOrder(const std::vector<Eigen::Vector2d>& grid,
+                                                  BoardSize size, const cv::Mat& gray);
+
+// The outline of the board's squares area in the image (board points (-1, -1), (cols, -1),
+// (cols, rows), (-1, rows) in squares, mapped by the homography of the detected corners), and
+// whether a pixel lies inside it grown by `margin_squares`.
+std::vector<Eigen::Vector2d> SquaresOutline(const CheckerboardDetection& board, BoardSize size,
+                                            double margin_squares = 0.0);
+bool InsideOutline(const std::vector<Eigen::Vector2d>& outline, const Eigen::Vector2d& px);
+
+// 8-bit single-channel version of an image (BGR -> gray, 16-bit -> scaled).
+cv::Mat ToGray8(const cv::Mat& image);
+
+}  // namespace msmcal::vision

@@ -1,0 +1,79 @@
+#include "sessions/orchestrator/demo_rig.h"
+
+#include <stdexcept>
+
+#include "mocks/generator/mock_server.h"
+
+namespace msmcal::orchestrator {
+
+std::string DemoRigOptions::Validate() const {
+  if (camera_address.empty()) return "DemoRigOptions.camera_address is empty";
+  if (!(camera_frame_rate_hz > 0))
+    return "DemoRigOptions.camera_frame_rate_hz = " + std::to_string(camera_frame_rate_hz) +
+           ": must be > 0";
+  if (std::string e = sim.Validate(); !e.empty()) return "DemoRigOptions.sim: " + e;
+  return {};
+}
+
+DemoRig::DemoRig(const DemoRigOptions& options) : options_(options) {
+  if (std::string e = options.Validate(); !e.empty()) throw std::invalid_argument(e);
+  sim_ = std::make_shared<const sim::RigSimulator>(options.sim);
+  mcus_ = std::make_unique<DemoMcus>();
+  world_ = std::make_unique<SimulatedWorld>(
+      sim_, [this](HallRun run) { return mcus_->Start(options_.sim, run); });
+  generators_ = std::make_unique<sim::MockGeneratorPair>(sim::GeneratorPairOptions{});
+  sim::MockGvCameraOptions cam;
+  cam.address = options.camera_address;
+  cam.sensor_width = sim_->camera().width;
+  cam.sensor_height = sim_->camera().height;
+  cam.frame_rate_hz = options.camera_frame_rate_hz;
+  std::string error;
+  camera_ = sim::MockGvCamera::Start(cam, world_->MakeFrameSource(), &error);
+  if (!camera_)
+    throw std::runtime_error("mock camera on " + options.camera_address + ": " + error);
+}
+
+DemoRig::~DemoRig() {
+  camera_.reset();
+  mcus_.reset();
+}
+
+int DemoRig::generators_port(int unit) const { return generators_->port(unit); }
+
+gen::RigGeneratorConfig DemoRig::GeneratorConfig() const {
+  gen::RigGeneratorConfig c;
+  const auto& m = options_.sim.mirror;
+  c.unit1.name = "generator1";
+  c.unit1.link.host = "127.0.0.1";
+  c.unit1.link.port = generators_->port(1);
+  c.unit1.limits[0] = {"fast_coil", 2.0 * m.fast.amplitude_vpp, 0.5, 0.5 * m.fast.frequency_hz,
+                       1.5 * m.fast.frequency_hz, 1.0};
+  c.unit1.limits[1] = {"slow_coil", 2.0 * m.slow.amplitude_vpp, 0.5, 0.5 * m.slow.frequency_hz,
+                       1.5 * m.slow.frequency_hz, 1.0};
+  c.unit2.name = "generator2";
+  c.unit2.link.host = "127.0.0.1";
+  c.unit2.link.port = generators_->port(2);
+  c.unit2.limits[0] = {"laser_trigger", 5.0, 2.5, 0.01, 1000.0, 0.01};
+  c.unit2.limits[1] = {"mcu_clock", 3.3, 1.65, 0.01, 1000.0, 1.0};
+  c.signals.fast = {m.fast.frequency_hz, m.fast.amplitude_vpp, 0.0, m.fast.phase_deg};
+  c.signals.slow = {m.slow.frequency_hz, m.slow.amplitude_vpp, 0.0, m.slow.phase_deg};
+  c.signals.coil_load_ohm = 50.0;
+  c.signals.laser = {0.0, 5.0, gen::kHighZ};
+  c.signals.clock = {0.0, 3.3, gen::kHighZ};
+  return c;
+}
+
+OrchestratorOptions DemoRig::MakeOrchestratorOptions(const std::filesystem::path& out_dir) const {
+  OrchestratorOptions o;
+  o.out_dir = out_dir;
+  o.generators = GeneratorConfig();
+  o.camera_address = options_.camera_address;
+  o.camera_frame_rate_hz = options_.camera_frame_rate_hz;
+  o.mcu.stall_timeout_ms = 2000;
+  o.mcu_rate_hz = static_cast<uint16_t>(options_.sim.hall.sample_rate_hz);
+  return o;
+}
+
+dataset::Recording DemoRig::Plan() const { return sim_->MakeRecording(/*with_hall=*/false); }
+
+}  // namespace msmcal::orchestrator

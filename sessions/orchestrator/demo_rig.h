@@ -1,0 +1,65 @@
+#pragma once
+// The demo rig: every instrument of the calibration rig served by its mock in this process —
+// the two Keysight 33520B units on loopback TCP (SCPI), the GigE Vision camera on an address
+// (frames rendered from the rig simulator's scene for the world's current setup), and the Hall
+// MCU on a pty (one mock per recording, streaming the simulator's Hall model as fast as it is
+// read) — plus the SimulatedWorld the orchestrator's operator actions set.
+
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "drivers/generator/rig_config.h"
+#include "mocks/camera/mock_gv_camera.h"
+#include "mocks/rig/rig_simulator.h"
+#include "sessions/orchestrator/demo_mcus.h"
+#include "sessions/orchestrator/orchestrator.h"
+#include "sessions/orchestrator/simulated_world.h"
+
+namespace msmcal::sim {
+class MockGeneratorPair;  // mocks/generator/mock_server.h
+}  // namespace msmcal::sim
+
+namespace msmcal::orchestrator {
+
+struct DemoRigOptions {
+  sim::SimOptions sim;
+  std::string camera_address = "127.0.0.1";  // one GigE Vision server per address
+  double camera_frame_rate_hz = 20.0;
+  std::string Validate() const;
+};
+
+class DemoRig {
+ public:
+  // Builds the simulator and starts the generator pair and the camera. Throws
+  // std::runtime_error naming the instrument that could not be served.
+  explicit DemoRig(const DemoRigOptions& options);
+  ~DemoRig();
+  DemoRig(const DemoRig&) = delete;
+  DemoRig& operator=(const DemoRig&) = delete;
+
+  const sim::RigSimulator& sim() const { return *sim_; }
+  std::shared_ptr<const sim::RigSimulator> shared_sim() const { return sim_; }
+  SimulatedWorld& world() { return *world_; }
+  sim::MockGeneratorPair& generators() { return *generators_; }
+  int generators_port(int unit) const;  // TCP port of unit 1 or 2
+  sim::MockGvCamera& camera() { return *camera_; }
+
+  // The generator configuration of this rig: the mocks' ports, limits around the simulated
+  // mirror's drive, and the simulator's drive frequencies and amplitudes.
+  gen::RigGeneratorConfig GeneratorConfig() const;
+  // Orchestrator options pointing at this rig's instruments.
+  OrchestratorOptions MakeOrchestratorOptions(const std::filesystem::path& out_dir) const;
+  // The session plan (trigger table, frame lists; no images, no Hall data).
+  dataset::Recording Plan() const;
+
+ private:
+  DemoRigOptions options_;
+  std::shared_ptr<const sim::RigSimulator> sim_;
+  std::unique_ptr<SimulatedWorld> world_;
+  std::unique_ptr<sim::MockGeneratorPair> generators_;
+  std::unique_ptr<sim::MockGvCamera> camera_;
+  std::unique_ptr<DemoMcus> mcus_;
+};
+
+}  // namespace msmcal::orchestrator

@@ -1,0 +1,86 @@
+#pragma once
+// The calibration session orchestrator (issue 9): rig check, step 1 (sliding plate poses),
+// background Hall recording, step 2 (neutral, fast-only and scan frames with the actual Hall
+// recording running), writing an interchange folder. Instruments are reached only through the
+// real drivers: SCPI to the two generators, GigE Vision (Aravis) to the camera, the serial link
+// to the Hall MCU. The person at the rig is a RigOperator.
+//
+// Safe state: from the moment a generator output may be on, a SafeStateGuard switches every
+// output off on SIGINT/SIGTERM (then the process ends with 128 + signo), on any exception and at
+// the end of the run; the session log (session_log.txt in the folder) records what happened.
+// Solving is not done here (see app/cmd_demo.cc): the result is a complete interchange folder.
+
+#include <cstdint>
+#include <filesystem>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "drivers/generator/rig_config.h"
+#include "drivers/hall_mcu/hall_sensor.h"
+#include "processing/dataset/recording.h"
+#include "sessions/orchestrator/quality_gate.h"
+#include "sessions/orchestrator/rig_operator.h"
+
+namespace msmcal::orchestrator {
+
+struct OrchestratorOptions {
+  std::filesystem::path out_dir;         // created; must be empty or absent
+  gen::RigGeneratorConfig generators;    // unit addresses, limits and the signals to apply
+  std::string camera_address = "127.0.0.1";  // GigE Vision camera, opened by address only
+  double camera_frame_rate_hz = 10.0;
+  int frame_timeout_ms = 10000;          // per NextFrame
+  int max_stale_frames = 50;             // frames discarded while waiting for the new setup
+  int max_gate_attempts = 2;             // fresh frames tried per frame before it is rejected
+  bool run_quality_gate = true;
+  GateOptions gate;
+  hall_mcu::HallMcuOptions mcu;          // device is asked from the operator per recording
+  uint16_t mcu_rate_hz = 1000;
+  double hall_max_seconds = 0;           // 0: until the MCU's source ends / no limit
+  // Test hook: throw after this many accepted frames (< 0: never) to exercise the safe state.
+  int fail_after_frames = -1;
+  std::string Validate() const;          // empty when valid; names field, value, constraint
+};
+
+// One line of progress ("step 1: frame 3/15 accepted").
+using ProgressFn = std::function<void(const std::string& line)>;
+
+struct FrameOutcome {
+  std::string file;
+  bool accepted = false;
+  std::string reason;  // why it was rejected
+};
+
+struct RigCheckResult {
+  bool ok = false;
+  std::vector<std::string> problems;  // one per problem found (empty when ok)
+  std::vector<std::string> found;     // identities / formats / stream figures
+};
+
+struct SessionResult {
+  RigCheckResult rig_check;
+  std::vector<FrameOutcome> frames;
+  uint64_t background_readings = 0, background_edges = 0;
+  uint64_t actual_readings = 0, actual_edges = 0;
+  bool safe_state_confirmed = false;
+  std::filesystem::path folder;
+};
+
+class RigCheckError : public std::runtime_error {
+ public:
+  RigCheckError(const RigCheckResult& result);
+  const RigCheckResult& result() const { return result_; }
+
+ private:
+  RigCheckResult result_;
+};
+
+// Runs the whole acquisition. `plan` holds the session's boards, beams, drive, clock, trigger
+// table and frame lists (images and Hall recordings are what this acquires); it is written as
+// session.yaml/camera.yaml last, once everything else is in place. Rejected frames are left out
+// of the written session and listed in the result. Throws RigCheckError (the list of problems)
+// when the rig check fails, std::runtime_error for other failures (after the safe state).
+SessionResult RunSession(const OrchestratorOptions& options, const dataset::Recording& plan,
+                         RigOperator& rig_operator, const ProgressFn& progress);
+
+}  // namespace msmcal::orchestrator

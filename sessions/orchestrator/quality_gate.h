@@ -1,0 +1,42 @@
+#pragma once
+// Per-frame quality gates applied before a frame is accepted into a session:
+//   step 1: both boards (sliding and world) found; step 2: the world board found;
+//   exactly the expected number of laser dots; no saturation beyond use; every dot inside the
+//   visible area of the board plane it falls on (step 1: the sliding board, step 2: the world
+//   board). A rejected frame says why.
+
+#include <opencv2/core.hpp>
+#include <string>
+#include <vector>
+
+#include "processing/dataset/recording.h"
+#include "processing/vision/checkerboard.h"
+#include "processing/vision/dots.h"
+
+namespace msmcal::orchestrator {
+
+struct GateOptions {
+  vision::DotOptions dots;
+  vision::CheckerboardOptions boards;
+  // Largest fraction of all pixels at full scale (sensor saturation beyond use).
+  double max_saturated_pixel_fraction = 0.01;
+  // Dots must lie inside the board's squares outline grown by this many squares (the board
+  // plane's visible printed area).
+  double outline_margin_squares = 1.0;
+  std::string Validate() const;  // empty when valid; names field, value and constraint
+};
+
+struct GateResult {
+  bool accepted = false;
+  std::string reason;  // why it was rejected (empty when accepted)
+  int dots_found = 0;
+  int dots_expected = 0;
+  double saturated_fraction = 0;
+};
+
+// step: 1 or 2. dots_expected: beams x max(1, triggers) of the frame.
+GateResult CheckFrame(const cv::Mat& image, int step, int dots_expected,
+                      const dataset::BoardSpec& world_board, const dataset::BoardSpec& sliding_board,
+                      const GateOptions& options);
+
+}  // namespace msmcal::orchestrator

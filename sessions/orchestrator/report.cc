@@ -1,0 +1,352 @@
+#include "sessions/orchestrator/report.h"
+
+#include <yaml-cpp/yaml.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <map>
+#include <nlohmann/json.hpp>
+#include <sstream>
+#include <stdexcept>
+
+#include "mocks/rig/truth_io.h"
+#include "processing/geometry/plane_line.h"
+#include "sessions/interchange/interchange_io.h"
+
+namespace msmcal::orchestrator {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+std::string Fmt(const char* format, double v) {
+  char buf[64];
+  std::snprintf(buf, sizeof(buf), format, v);
+  return buf;
+}
+
+std::string Escape(const std::string& s) {
+  std::string o;
+  for (char c : s) {
+    if (c == '<') o += "&lt;";
+    else if (c == '>') o += "&gt;";
+    else if (c == '&') o += "&amp;";
+    else o += c;
+  }
+  return o;
+}
+
+// Rows of a CSV with a header; columns by name.
+std::vector<std::map<std::string, double>> ReadNumericCsv(const fs::path& file) {
+  std::ifstream in(file);
+  if (!in) throw std::runtime_error(file.string() + ": cannot open");
+  std::string line;
+  std::getline(in, line);
+  std::vector<std::string> names;
+  {
+    std::stringstream ss(line);
+    std::string n;
+    while (std::getline(ss, n, ',')) names.push_back(n);
+  }
+  std::vector<std::map<std::string, double>> rows;
+  int lineno = 1;
+  while (std::getline(in, line)) {
+    ++lineno;
+    if (line.empty()) continue;
+    std::stringstream ss(line);
+    std::string cell;
+    std::map<std::string, double> row;
+    for (size_t k = 0; k < names.size() && std::getline(ss, cell, ','); ++k) {
+      try {
+        row[names[k]] = std::stod(cell);
+      } catch (const std::exception&) {
+        throw std::runtime_error(file.string() + ":" + std::to_string(lineno) + ": column '" +
+                                 names[k] + "': not a number: '" + cell + "'");
+      }
+    }
+    rows.push_back(std::move(row));
+  }
+  return rows;
+}
+
+double Rms(const std::vector<double>& v) {
+  double s = 0;
+  for (double x : v) s += x * x;
+  return v.empty() ? 0 : std::sqrt(s / v.size());
+}
+
+}  // namespace
+
+std::string SvgPlot(const std::string& title, const std::string& x_label,
+                    const std::string& y_label, const std::vector<PlotSeries>& series,
+                    bool y_down) {
+  const double w = 560, h = 380, l = 70, r = 20, t = 30, b = 50;
+  double x0 = INFINITY, x1 = -INFINITY, y0 = INFINITY, y1 = -INFINITY;
+  for (const auto& s : series) {
+    for (double x : s.x) x0 = std::min(x0, x), x1 = std::max(x1, x);
+    for (double y : s.y) y0 = std::min(y0, y), y1 = std::max(y1, y);
+  }
+  if (!(x1 >= x0)) x0 = 0, x1 = 1;
+  if (!(y1 >= y0)) y0 = 0, y1 = 1;
+  if (x1 == x0) x1 = x0 + 1;
+  if (y1 == y0) y1 = y0 + 1;
+  auto px = [&](double x) { return l + (x - x0) / (x1 - x0) * (w - l - r); };
+  auto py = [&](double y) {
+    const double f = (y - y0) / (y1 - y0);
+    return y_down ? t + f * (h - t - b) : h - b - f * (h - t - b);
+  };
+  std::ostringstream o;
+  o << "<svg xmlns='http://www.w3.org/2000/svg' width='" << w << "' height='" << h
+    << "' font-family='sans-serif' font-size='11'>";
+  o << "<rect x='" << l << "' y='" << t << "' width='" << (w - l - r) << "' height='"
+    << (h - t - b) << "' fill='none' stroke='#888'/>";
+  o << "<text x='" << w / 2 << "' y='18' text-anchor='middle' font-size='13'>" << Escape(title)
+    << "</text>";
+  o << "<text x='" << w / 2 << "' y='" << h - 10 << "' text-anchor='middle'>" << Escape(x_label)
+    << "</text>";
+  o << "<text x='14' y='" << h / 2 << "' text-anchor='middle' transform='rotate(-90 14 " << h / 2
+    << ")'>" << Escape(y_label) << "</text>";
+  for (int k = 0; k <= 4; ++k) {
+    const double xv = x0 + (x1 - x0) * k / 4, yv = y0 + (y1 - y0) * k / 4;
+    o << "<text x='" << px(xv) << "' y='" << h - b + 14 << "' text-anchor='middle'>"
+      << Fmt("%.4g", xv) << "</text>";
+    o << "<text x='" << l - 4 << "' y='" << py(yv) + 4 << "' text-anchor='end'>"
+      << Fmt("%.4g", yv) << "</text>";
+  }
+  int legend = 0;
+  for (const auto& s : series) {
+    const size_t n = std::min(s.x.size(), s.y.size());
+    if (s.line) {
+      o << "<polyline fill='none' stroke='" << s.colour << "' stroke-width='1.2' points='";
+      for (size_t i = 0; i < n; ++i) o << Fmt("%.1f", px(s.x[i])) << ',' << Fmt("%.1f", py(s.y[i])) << ' ';
+      o << "'/>";
+    } else {
+      for (size_t i = 0; i < n; ++i)
+        o << "<circle cx='" << Fmt("%.1f", px(s.x[i])) << "' cy='" << Fmt("%.1f", py(s.y[i]))
+          << "' r='2' fill='" << s.colour << "'/>";
+    }
+    if (!s.name.empty()) {
+      o << "<text x='" << l + 8 << "' y='" << t + 14 + 13 * legend << "' fill='" << s.colour
+        << "'>" << Escape(s.name) << "</text>";
+      ++legend;
+    }
+  }
+  o << "</svg>";
+  return o.str();
+}
+
+std::string SvgHistogram(const std::string& title, const std::string& x_label,
+                         const std::vector<double>& values, int bins) {
+  PlotSeries s;
+  s.line = true;
+  if (values.empty() || bins < 1) return SvgPlot(title, x_label, "count", {});
+  const double lo = *std::min_element(values.begin(), values.end());
+  double hi = *std::max_element(values.begin(), values.end());
+  if (hi <= lo) hi = lo + 1;
+  std::vector<int> counts(bins, 0);
+  for (double v : values)
+    ++counts[std::min(bins - 1, static_cast<int>((v - lo) / (hi - lo) * bins))];
+  for (int k = 0; k < bins; ++k) {  // outline of the bars
+    const double a = lo + (hi - lo) * k / bins, b = lo + (hi - lo) * (k + 1) / bins;
+    s.x.insert(s.x.end(), {a, a, b, b});
+    s.y.insert(s.y.end(), {0.0, double(counts[k]), double(counts[k]), 0.0});
+  }
+  return SvgPlot(title, x_label, "count", {s});
+}
+
+SessionReport BuildSessionReport(const fs::path& dir,
+                                 const std::vector<std::string>& session_notes) {
+  SessionReport rep;
+  const fs::path res = dir / "results";
+  const bool have_truth = fs::exists(dir / "truth" / "mirror_planes.csv");
+  sim::SimTruth truth;
+  if (have_truth) truth = sim::ReadTruth(dir);
+  else rep.skipped.push_back("comparison with truth: no truth/ folder (not a simulated session)");
+
+  std::vector<std::string> plots;
+  // Table I: planes vs truth, validation.
+  if (fs::exists(res / "mirror_planes.csv") && fs::exists(res / "summary.json")) {
+    rep.have_planes = true;
+    const auto planes = interchange::ReadMirrorPlanesCsv(res / "mirror_planes.csv");
+    rep.planes = static_cast<int>(planes.size());
+    std::ifstream in(res / "summary.json");
+    const nlohmann::json all = nlohmann::json::parse(in);
+    if (!all.contains("mirror_poses"))
+      throw std::runtime_error((res / "summary.json").string() + ": no 'mirror_poses' key");
+    const auto& s = all["mirror_poses"];
+    rep.validation_rms_deg = s.value("validation_rms_deg", 0.0);
+    rep.validation_rms_px = s.value("validation_rms_px", 0.0);
+    rep.baseline_rms_deg = s.value("baseline_validation_rms_deg", 0.0);
+    rep.baseline_rms_px = s.value("baseline_validation_rms_px", 0.0);
+    rep.normalised_validation_rms = s.value("validation_normalised_rms", 0.0);
+    rep.mean_spanning_angle_deg = s.value("mean_spanning_angle_deg", 0.0);
+    rep.validation_count = s.value("validation_count", 0);
+    if (have_truth) {
+      std::map<int, dataset::MirrorPlaneRow> by_j;
+      for (const auto& r : truth.mirror_planes) by_j[r.j] = r;
+      std::vector<double> en, ea, eb, et;
+      PlotSeries est{"estimated", {}, {}, false, "#d62728"}, tru{"truth", {}, {}, false, "#2ca02c"};
+      for (const auto& p : planes) {
+        auto it = by_j.find(p.j);
+        if (it == by_j.end()) continue;
+        en.push_back(geometry::AngleBetween(p.plane_in_world.n, it->second.plane_in_world.n) *
+                     180.0 / M_PI);
+        ea.push_back(p.alpha_deg - it->second.alpha_deg);
+        eb.push_back(p.beta_deg - it->second.beta_deg);
+        et.push_back(p.trans_mm - it->second.trans_mm);
+        tru.x.push_back(it->second.alpha_deg);
+        tru.y.push_back(it->second.beta_deg);
+        est.x.push_back(p.alpha_deg);
+        est.y.push_back(p.beta_deg);
+      }
+      rep.normal_rms_vs_truth_deg = Rms(en);
+      rep.alpha_rms_vs_truth_deg = Rms(ea);
+      rep.beta_rms_vs_truth_deg = Rms(eb);
+      rep.trans_rms_vs_truth_mm = Rms(et);
+      plots.push_back(SvgPlot("Scan pattern: mirror pose per trigger", "alpha (deg)",
+                              "beta (deg)", {tru, est}));
+      PlotSeries dots{"true dot centres (step 2 scan frames)", {}, {}, false, "#1f77b4"};
+      for (const auto& d : truth.dots)
+        if (d.j >= 0 && d.file.rfind("step2/", 0) == 0) dots.x.push_back(d.u_px), dots.y.push_back(d.v_px);
+      plots.push_back(SvgPlot("Scan pattern of laser dots on the world board", "u (px)",
+                              "v (px)", {dots}, /*y_down=*/true));
+    }
+    if (fs::exists(res / "validation_detail.csv")) {
+      const auto rows = ReadNumericCsv(res / "validation_detail.csv");
+      std::vector<double> err;
+      PlotSeries sc{"validation dots", {}, {}, false, "#9467bd"};
+      for (const auto& r : rows) {
+        const double e = r.count("err_px") ? r.at("err_px") : 0;
+        err.push_back(e);
+        sc.x.push_back(r.count("predicted_sigma_px") ? r.at("predicted_sigma_px") : 0);
+        sc.y.push_back(e);
+      }
+      plots.push_back(SvgHistogram("Validation-beam residuals (proposed model)", "error (px)",
+                                   err, 20));
+      plots.push_back(SvgPlot("Uncertainty: predicted sigma vs actual error", "predicted sigma (px)",
+                              "error (px)", {sc}));
+    } else {
+      rep.skipped.push_back("residual plots: results/validation_detail.csv missing");
+    }
+  } else {
+    rep.skipped.push_back("Table I figures: results/mirror_planes.csv or summary.json missing "
+                          "(solver did not run or failed)");
+  }
+
+  // Table II: Hall model.
+  const fs::path hall_yaml = res / "hall_model.yaml";
+  if (fs::exists(hall_yaml)) {
+    rep.have_hall = true;
+    YAML::Node y;
+    try {
+      y = YAML::LoadFile(hall_yaml.string());
+      rep.hall_model = y["model"].as<std::string>();
+      rep.delta_t_s = y["delta_t_s"].as<double>();
+      if (y["test_rms"]) {
+        const YAML::Node tr = y["test_rms"];
+        const char* keys[3] = {"alpha_deg", "beta_deg", "trans_mm"};
+        for (int k = 0; k < 3; ++k) {
+          if (tr.IsSequence() && tr.size() == 3) rep.test_rms[k] = tr[k].as<double>();
+          else if (tr.IsMap() && tr[keys[k]]) rep.test_rms[k] = tr[keys[k]].as<double>();
+        }
+      }
+    } catch (const YAML::Exception& e) {
+      throw std::runtime_error(hall_yaml.string() + ": " + e.what());
+    }
+    rep.delta_t_truth_s = truth.hall.delta_t_s;
+    if (have_truth && fs::exists(res / "hall_poses.csv") && !truth.pose_trajectory.empty()) {
+      const auto rows = ReadNumericCsv(res / "hall_poses.csv");
+      const double period = truth.hall.pattern_period_s > 0 ? truth.hall.pattern_period_s
+                                                            : truth.pose_trajectory.back().t_s;
+      const auto& tr = truth.pose_trajectory;
+      const double dt = tr.size() > 1 ? tr[1].t_s - tr[0].t_s : 1;
+      std::vector<double> ea, eb, et;
+      PlotSeries pa{"Hall prediction alpha", {}, {}, false, "#d62728"};
+      PlotSeries ta{"true alpha", {}, {}, true, "#2ca02c"};
+      PlotSeries pb{"Hall prediction beta", {}, {}, false, "#ff7f0e"};
+      PlotSeries tb{"true beta", {}, {}, true, "#1f77b4"};
+      for (const auto& p : tr) ta.x.push_back(p.t_s), ta.y.push_back(p.alpha_deg),
+                              tb.x.push_back(p.t_s), tb.y.push_back(p.beta_deg);
+      for (size_t i = 0; i < rows.size(); ++i) {
+        const auto& r = rows[i];
+        double ph = std::fmod(r.at("t_s"), period);
+        if (ph < 0) ph += period;
+        const size_t k = std::min(tr.size() - 1, static_cast<size_t>(std::lround(ph / dt)));
+        ea.push_back(r.at("alpha_deg") - tr[k].alpha_deg);
+        eb.push_back(r.at("beta_deg") - tr[k].beta_deg);
+        et.push_back(r.at("trans_mm") - tr[k].trans_mm);
+        if (i % 7 == 0 && pa.x.size() < 600) {
+          pa.x.push_back(ph), pa.y.push_back(r.at("alpha_deg"));
+          pb.x.push_back(ph), pb.y.push_back(r.at("beta_deg"));
+        }
+      }
+      rep.have_hall_vs_truth = !ea.empty();
+      rep.hall_rms_vs_truth[0] = Rms(ea);
+      rep.hall_rms_vs_truth[1] = Rms(eb);
+      rep.hall_rms_vs_truth[2] = Rms(et);
+      plots.push_back(SvgPlot("Hall model fit: predicted vs true pose over one pattern period",
+                              "pattern time (s)", "angle (deg)", {ta, tb, pa, pb}));
+    } else {
+      rep.skipped.push_back("Hall prediction vs truth: results/hall_poses.csv or truth missing");
+    }
+  } else {
+    rep.skipped.push_back("Table II figures: results/hall_model.yaml missing (Hall calibration "
+                          "did not run or failed)");
+  }
+
+  // Text.
+  std::ostringstream t;
+  t << "== Table I style: mirror poses ==\n";
+  if (rep.have_planes) {
+    t << "  scan planes solved:                 " << rep.planes << "\n";
+    t << "  mean spanning angle:                " << Fmt("%.2f deg", rep.mean_spanning_angle_deg) << "\n";
+    t << "  validation-beam error, baseline:    " << Fmt("%.4f deg", rep.baseline_rms_deg)
+      << Fmt(" (%.3f px) RMS\n", rep.baseline_rms_px);
+    t << "  validation-beam error, proposed:    " << Fmt("%.4f deg", rep.validation_rms_deg)
+      << Fmt(" (%.3f px) RMS", rep.validation_rms_px)
+      << " over " << rep.validation_count << " dots\n";
+    t << "  normalised validation RMS:          " << Fmt("%.2f", rep.normalised_validation_rms) << "\n";
+    if (have_truth) {
+      t << "  plane normal error vs truth:        " << Fmt("%.4f deg RMS\n", rep.normal_rms_vs_truth_deg);
+      t << "  alpha / beta / trans vs truth:      " << Fmt("%.4f deg / ", rep.alpha_rms_vs_truth_deg)
+        << Fmt("%.4f deg / ", rep.beta_rms_vs_truth_deg) << Fmt("%.4f mm RMS\n", rep.trans_rms_vs_truth_mm);
+    }
+  } else {
+    t << "  (skipped)\n";
+  }
+  t << "== Table II style: Hall sensor model ==\n";
+  if (rep.have_hall) {
+    t << "  model:                              " << rep.hall_model << "\n";
+    t << "  test RMS alpha / beta / trans:      " << Fmt("%.4f deg / ", rep.test_rms[0])
+      << Fmt("%.4f deg / ", rep.test_rms[1]) << Fmt("%.4f mm\n", rep.test_rms[2]);
+    t << "  delta_t estimated:                  " << Fmt("%.4f ms", rep.delta_t_s * 1e3);
+    if (have_truth) t << Fmt(" (truth %.4f ms", rep.delta_t_truth_s * 1e3)
+                      << Fmt(", error %.4f ms)", (rep.delta_t_s - rep.delta_t_truth_s) * 1e3);
+    t << "\n";
+    if (rep.have_hall_vs_truth)
+      t << "  Hall prediction vs true pose:       " << Fmt("%.4f deg / ", rep.hall_rms_vs_truth[0])
+        << Fmt("%.4f deg / ", rep.hall_rms_vs_truth[1]) << Fmt("%.4f mm RMS\n", rep.hall_rms_vs_truth[2]);
+  } else {
+    t << "  (skipped)\n";
+  }
+  for (const auto& s : rep.skipped) t << "SKIPPED: " << s << "\n";
+  rep.text = t.str();
+
+  std::ostringstream h;
+  h << "<!DOCTYPE html><html><head><meta charset='utf-8'><title>msmcal calibration report</title>"
+       "<style>body{font-family:sans-serif;max-width:1200px;margin:auto}pre{background:#f4f4f4;"
+       "padding:8px}svg{margin:6px;border:1px solid #ddd}</style></head><body>";
+  h << "<h1>msmcal calibration report</h1><p>Session folder: " << Escape(dir.string()) << "</p>";
+  h << "<h2>Figures</h2><pre>" << Escape(rep.text) << "</pre>";
+  h << "<h2>Plots</h2><div>";
+  for (const auto& p : plots) h << p;
+  h << "</div><h2>Session log</h2><pre>";
+  for (const auto& n : session_notes) h << Escape(n) << "\n";
+  h << "</pre></body></html>\n";
+  rep.html = h.str();
+  return rep;
+}
+
+}  // namespace msmcal::orchestrator

@@ -1,0 +1,113 @@
+// Safe state on SIGTERM, SIGINT and normal exit, observed through the mock: a child process drives
+// the mock units, gets the signal mid-run, and the test waits on the mock's state-change
+// notifications until every output is off (no sleeps).
+#include "drivers/generator/safe_state.h"
+
+#include <gtest/gtest.h>
+#include <signal.h>
+#include <spawn.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <string>
+
+#include "test_rig.h"
+
+extern char** environ;
+
+namespace msmcal::gen {
+namespace {
+
+struct Child {
+  pid_t pid = -1;
+  int to_child = -1;    // child's stdin
+  int from_child = -1;  // child's stdout
+};
+
+Child Spawn(const std::vector<std::string>& args) {
+  int in[2], out[2];
+  EXPECT_EQ(pipe(in), 0);
+  EXPECT_EQ(pipe(out), 0);
+  posix_spawn_file_actions_t fa;
+  posix_spawn_file_actions_init(&fa);
+  posix_spawn_file_actions_adddup2(&fa, in[0], 0);
+  posix_spawn_file_actions_adddup2(&fa, out[1], 1);
+  posix_spawn_file_actions_addclose(&fa, in[1]);
+  posix_spawn_file_actions_addclose(&fa, out[0]);
+  std::vector<char*> argv;
+  for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
+  argv.push_back(nullptr);
+  Child c;
+  EXPECT_EQ(posix_spawn(&c.pid, argv[0], &fa, nullptr, argv.data(), environ), 0);
+  posix_spawn_file_actions_destroy(&fa);
+  close(in[0]);
+  close(out[1]);
+  c.to_child = in[1];
+  c.from_child = out[0];
+  return c;
+}
+
+std::string ReadLine(int fd) {
+  std::string line;
+  char ch;
+  while (read(fd, &ch, 1) == 1 && ch != '\n') line.push_back(ch);
+  return line;
+}
+
+bool AnyOn(sim::MockGeneratorPair& pair) {
+  return pair.unit(1).AnyOutputOn() || pair.unit(2).AnyOutputOn();
+}
+
+bool WaitAllOff(sim::MockGeneratorPair& pair) {
+  auto off = [](const sim::Mock33520B& u) { return !u.AnyOutputOnLocked(); };
+  return pair.unit(1).WaitUntil(off, 10000) && pair.unit(2).WaitUntil(off, 10000);
+}
+
+class SafeStateTest : public ::testing::TestWithParam<int> {};  // signal, 0 = normal exit
+
+TEST_P(SafeStateTest, OutputsGoOffWhenTheDrivingProcessEnds) {
+  sim::MockGeneratorPair pair(sim::GeneratorPairOptions{});
+  Child c = Spawn({MSMCAL_SAFE_STATE_CHILD, testing::SourceDir() + "/config/rig.yaml",
+                   std::to_string(pair.port(1)), std::to_string(pair.port(2))});
+  ASSERT_EQ(ReadLine(c.from_child), "ready");
+  EXPECT_TRUE(pair.unit(1).AnyOutputOn());
+  EXPECT_TRUE(pair.unit(2).AnyOutputOn());
+  if (GetParam() != 0) {
+    ASSERT_EQ(kill(c.pid, GetParam()), 0);
+  } else {
+    close(c.to_child);  // EOF: the child returns from main
+    c.to_child = -1;
+  }
+  EXPECT_TRUE(WaitAllOff(pair));
+  EXPECT_FALSE(AnyOn(pair));
+  int status = 0;
+  ASSERT_EQ(waitpid(c.pid, &status, 0), c.pid);
+  if (GetParam() != 0) {
+    EXPECT_TRUE(WIFSIGNALED(status));
+    EXPECT_EQ(WTERMSIG(status), GetParam());
+  } else {
+    EXPECT_TRUE(WIFEXITED(status));
+    EXPECT_EQ(WEXITSTATUS(status), 0);
+  }
+  if (c.to_child >= 0) close(c.to_child);
+  close(c.from_child);
+}
+
+INSTANTIATE_TEST_SUITE_P(Signals, SafeStateTest, ::testing::Values(SIGTERM, SIGINT, 0));
+
+TEST(SafeStateGuardTest, DestructorRunsActionAndDisarmSkipsIt) {
+  int runs = 0;
+  {
+    SafeStateGuard g([&] { ++runs; });
+  }
+  EXPECT_EQ(runs, 1);
+  {
+    SafeStateGuard g([&] { ++runs; });
+    EXPECT_THROW(SafeStateGuard([] {}), std::runtime_error);  // one per process
+    g.Disarm();
+  }
+  EXPECT_EQ(runs, 1);
+}
+
+}  // namespace
+}  // namespace msmcal::gen

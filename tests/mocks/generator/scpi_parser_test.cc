@@ -1,0 +1,69 @@
+#include "mocks/generator/scpi_parser.h"
+
+#include <gtest/gtest.h>
+
+namespace msmcal::sim {
+namespace {
+
+TEST(ScpiParserTest, MatchesShortLongOptionalAndSuffix) {
+  const char* p = "[SOURce#:]FREQuency[:CW]";
+  EXPECT_EQ(*MatchHeader(p, {"FREQ"}), std::vector<int>{1});
+  EXPECT_EQ(*MatchHeader(p, {"frequency"}), std::vector<int>{1});
+  EXPECT_EQ(*MatchHeader(p, {"SOUR2", "FREQ"}), std::vector<int>{2});
+  EXPECT_EQ(*MatchHeader(p, {"source1", "Freq", "cw"}), std::vector<int>{1});
+  EXPECT_FALSE(MatchHeader(p, {"FRE"}));
+  EXPECT_FALSE(MatchHeader(p, {"FREQU"}));  // neither short nor long form
+  EXPECT_FALSE(MatchHeader(p, {"SOUR", "VOLT"}));
+  EXPECT_EQ(*MatchHeader("OUTPut#[:STATe]", {"OUTP2"}), std::vector<int>{2});
+  EXPECT_EQ(*MatchHeader("OUTPut#[:STATe]", {"OUTPUT", "STAT"}), std::vector<int>{1});
+}
+
+TEST(ScpiParserTest, CompoundMessageFollowsPathRules) {
+  const SplitResult r = SplitProgramMessage("SOUR2:FREQ 1 KHZ;VOLT 0.5;:OUTP2 ON;*OPC?");
+  ASSERT_FALSE(r.failure);
+  ASSERT_EQ(r.units.size(), 4u);
+  std::vector<std::string> path;
+  EXPECT_EQ(ResolvePath(r.units[0], path), (std::vector<std::string>{"SOUR2", "FREQ"}));
+  EXPECT_EQ(ResolvePath(r.units[1], path), (std::vector<std::string>{"SOUR2", "VOLT"}));
+  EXPECT_EQ(ResolvePath(r.units[2], path), (std::vector<std::string>{"OUTP2"}));
+  EXPECT_EQ(ResolvePath(r.units[3], path), (std::vector<std::string>{"*OPC"}));
+  EXPECT_TRUE(r.units[3].query);
+  EXPECT_EQ(r.units[0].params, std::vector<std::string>{"1 KHZ"});
+}
+
+TEST(ScpiParserTest, BlocksMayHoldSeparatorsAndNewlines) {
+  std::string msg = "DATA:ARB:DAC a,#15;,\n\"x;*IDN?";
+  const auto end = FindMessageEnd(msg + "\n");
+  ASSERT_TRUE(end);
+  EXPECT_EQ(*end, msg.size());
+  const SplitResult r = SplitProgramMessage(msg);
+  ASSERT_FALSE(r.failure);
+  ASSERT_EQ(r.units.size(), 2u);
+  ASSERT_EQ(r.units[0].params.size(), 2u);
+  EXPECT_EQ(r.units[0].params[1], "#15;,\n\"x");
+  // Incomplete block: wait for more bytes.
+  EXPECT_FALSE(FindMessageEnd("DATA:ARB:DAC a,#210\n12"));
+}
+
+TEST(ScpiParserTest, UnitsAndSpecialValues) {
+  EXPECT_DOUBLE_EQ(*ParseNumericWithUnit("1 KHZ", "HZ"), 1e3);
+  EXPECT_DOUBLE_EQ(*ParseNumericWithUnit("2MHZ", "HZ"), 2e6);  // M before HZ is mega
+  EXPECT_DOUBLE_EQ(*ParseNumericWithUnit("100 mV", "VPP|V"), 0.1);
+  EXPECT_DOUBLE_EQ(*ParseNumericWithUnit("100 MVPP", "VPP|V"), 0.1);
+  EXPECT_DOUBLE_EQ(*ParseNumericWithUnit("1.5e3", "HZ"), 1500.0);
+  EXPECT_FALSE(ParseNumericWithUnit("1 FOO", "HZ"));
+  EXPECT_FALSE(ParseNumericWithUnit("MAX", "HZ"));
+  EXPECT_EQ(ParseBoolean("on"), true);
+  EXPECT_EQ(ParseBoolean("0"), false);
+  EXPECT_FALSE(ParseBoolean("maybe"));
+  EXPECT_EQ(FormatReplyNumber(1000.0), "+1.0000000000000E+03");
+  EXPECT_EQ(FormatReplyNumber(-0.25), "-2.5000000000000E-01");
+}
+
+TEST(ScpiParserTest, SyntaxErrors) {
+  EXPECT_EQ(SplitProgramMessage("FREQ::X 1").failure->code, -102);
+  EXPECT_EQ(SplitProgramMessage("DATA:ARB:DAC a,#0abc").failure->code, -161);
+}
+
+}  // namespace
+}  // namespace msmcal::sim

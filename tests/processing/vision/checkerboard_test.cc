@@ -1,0 +1,100 @@
+#include "processing/vision/checkerboard.h"
+
+#include <gtest/gtest.h>
+
+#include <Eigen/Dense>
+#include <cmath>
+#include <opencv2/imgproc.hpp>
+
+namespace msmcal::vision {
+namespace {
+
+// Renders a board (interchange convention: square with minimum inner corner (i, j) dark iff
+// i + j even, white margin) through the homography pixel = H * (x_mm, y_mm, 1), 4x4 supersampled.
+cv::Mat RenderBoard(const Eigen::Matrix3d& h, BoardSize size, double square, cv::Size image) {
+  const Eigen::Matrix3d hinv = h.inverse();
+  cv::Mat1b img(image, 10);
+  for (int y = 0; y < image.height; ++y)
+    for (int x = 0; x < image.width; ++x) {
+      double sum = 0;
+      for (int sy = 0; sy < 4; ++sy)
+        for (int sx = 0; sx < 4; ++sx) {
+          const Eigen::Vector3d b =
+              hinv * Eigen::Vector3d(x - 0.375 + 0.25 * sx, y - 0.375 + 0.25 * sy, 1);
+          const double bx = b.x() / b.z() / square, by = b.y() / b.z() / square;
+          double level = 10;
+          if (bx >= -2 && by >= -2 && bx < size.cols + 1 && by < size.rows + 1)
+            level = 210;  // margin
+          if (bx >= -1 && by >= -1 && bx < size.cols && by < size.rows) {
+            const int i = static_cast<int>(std::floor(bx)), j = static_cast<int>(std::floor(by));
+            level = ((i + j) % 2 == 0) ? 20 : 210;
+          }
+          sum += level;
+        }
+      img(y, x) = static_cast<uchar>(sum / 16);
+    }
+  return img;
+}
+
+Eigen::Matrix3d BoardToImage(double angle_deg, double scale, Eigen::Vector2d centre, BoardSize size,
+                             double square, double tilt) {
+  const double a = angle_deg * M_PI / 180.0;
+  Eigen::Matrix3d t = Eigen::Matrix3d::Identity();
+  t(0, 2) = -0.5 * (size.cols - 1) * square;
+  t(1, 2) = -0.5 * (size.rows - 1) * square;
+  Eigen::Matrix3d r = Eigen::Matrix3d::Identity();
+  r << scale * std::cos(a), -scale * std::sin(a), centre.x(), scale * std::sin(a),
+      scale * std::cos(a), centre.y(), tilt, 0, 1;
+  return r * t;
+}
+
+Eigen::Vector2d Apply(const Eigen::Matrix3d& h, double x, double y) {
+  const Eigen::Vector3d p = h * Eigen::Vector3d(x, y, 1);
+  return p.head<2>() / p.z();
+}
+
+class CheckerboardRotationTest : public ::testing::TestWithParam<double> {};
+
+TEST_P(CheckerboardRotationTest, CanonicalOrderWhateverTheRotation) {
+  const BoardSize size{7, 4};  // (cols+1) even, (rows+1) odd
+  const double square = 10;
+  const Eigen::Matrix3d h =
+      BoardToImage(GetParam(), 3.2, Eigen::Vector2d(200, 170), size, square, 2e-4);
+  const cv::Mat img = RenderBoard(h, size, square, cv::Size(400, 340));
+  const auto det = DetectCheckerboard(img, size);
+  ASSERT_TRUE(det) << "rotation " << GetParam();
+  ASSERT_EQ(det->corners_px.size(), 28u);
+  double worst = 0;
+  for (int r = 0; r < size.rows; ++r)
+    for (int c = 0; c < size.cols; ++c)
+      worst = std::max(
+          worst, (det->corners_px[r * size.cols + c] - Apply(h, c * square, r * square)).norm());
+  EXPECT_LT(worst, 0.25) << "rotation " << GetParam();
+}
+
+INSTANTIATE_TEST_SUITE_P(Rotations, CheckerboardRotationTest,
+                         ::testing::Values(0.0, 33.0, 90.0, 180.0, 250.0));
+
+TEST(CheckerboardTest, TwoBoardsOfDifferentSizesInOneImage) {
+  const BoardSize big{9, 6}, small{5, 4};
+  const Eigen::Matrix3d hb = BoardToImage(10, 2.5, Eigen::Vector2d(150, 170), big, 10, 0);
+  const Eigen::Matrix3d hs = BoardToImage(-20, 2.5, Eigen::Vector2d(430, 170), small, 10, 0);
+  const cv::Mat a = RenderBoard(hb, big, 10, cv::Size(560, 340));
+  const cv::Mat b = RenderBoard(hs, small, 10, cv::Size(560, 340));
+  cv::Mat img = cv::max(a, b);  // boards do not overlap; background is the darker level
+  const auto found = DetectCheckerboards(img, {big, small});
+  ASSERT_TRUE(found[0]);
+  ASSERT_TRUE(found[1]);
+  EXPECT_LT((found[0]->corners_px[0] - Apply(hb, 0, 0)).norm(), 0.2);
+  EXPECT_LT((found[1]->corners_px[0] - Apply(hs, 0, 0)).norm(), 0.2);
+  const auto outline = SquaresOutline(*found[1], small);
+  EXPECT_TRUE(InsideOutline(outline, Apply(hs, 20, 15)));
+  EXPECT_FALSE(InsideOutline(outline, Apply(hb, 20, 15)));
+}
+
+TEST(CheckerboardTest, MissingBoardIsEmpty) {
+  EXPECT_FALSE(DetectCheckerboard(cv::Mat1b(200, 200, 128), BoardSize{7, 4}));
+}
+
+}  // namespace
+}  // namespace msmcal::vision
