@@ -1,7 +1,7 @@
-// `msmcal demo [--out DIR] [--seed N] [--config SIM.yaml] [--camera-address ADDR]`: the first
-// command of the README. Starts the mock generators (loopback SCPI), the mock GigE Vision camera
-// (rendering the rig simulator's scene for the current setup) and a mock Hall MCU (pty), runs a
-// complete calibration session through the real drivers and the orchestrator, then solves
+// `msmcal demo [--out DIR] [--seed N] [--config SIM.yaml] [--camera-address ADDR] [--store DIR]`:
+// the first command of the README. Starts the mock generators (loopback SCPI), the mock GigE Vision
+// camera (rendering the rig simulator's scene for the current setup) and a mock Hall MCU (pty),
+// runs a complete calibration session through the real drivers and the orchestrator, then solves
 // (`msmcal solve`), calibrates the Hall sensor (`msmcal hall calibrate`, `msmcal hall predict`) in
 // child processes of this same executable, and prints the Table I/II-style report compared with
 // the simulator's truth; the HTML report goes to DIR/report.html.
@@ -24,6 +24,8 @@
 #include "sessions/orchestrator/demo_rig.h"
 #include "sessions/orchestrator/orchestrator.h"
 #include "sessions/orchestrator/report.h"
+#include "sessions/store/session_store.h"
+#include "sessions/store/transfer.h"
 
 namespace msmcal::app {
 namespace {
@@ -35,6 +37,7 @@ struct DemoArgs {
   std::string config;
   int64_t seed = -1;
   std::string camera_address = "127.0.0.1";
+  std::string store;  // session store folder to import the finished session into (optional)
 };
 
 std::string Quote(const std::string& s) {
@@ -51,7 +54,8 @@ bool RunSelf(const std::string& args, std::vector<std::string>* notes) {
   std::fflush(stdout);
   const int rc = std::system(cmd.c_str());
   const bool ok = rc == 0;
-  notes->push_back("msmcal " + args + (ok ? ": ok" : ": FAILED (status " + std::to_string(rc) + ")"));
+  notes->push_back("msmcal " + args +
+                   (ok ? ": ok" : ": FAILED (status " + std::to_string(rc) + ")"));
   return ok;
 }
 
@@ -68,17 +72,19 @@ void RunDemo(const DemoArgs& args) {
   if (fs::exists(out) && !fs::is_empty(out))
     throw std::runtime_error(out.string() + ": exists and is not empty (choose another --out)");
 
-  std::printf("msmcal demo: starting the mock rig (2 generators on loopback SCPI, GigE Vision "
-              "camera on %s, Hall MCU on a pty)...\n",
-              ro.camera_address.c_str());
+  std::printf(
+      "msmcal demo: starting the mock rig (2 generators on loopback SCPI, GigE Vision "
+      "camera on %s, Hall MCU on a pty)...\n",
+      ro.camera_address.c_str());
   std::fflush(stdout);
   orchestrator::DemoRig rig(ro);
   for (const auto& w : rig.sim().warnings()) spdlog::warn("simulator: {}", w);
-  std::printf("  generators on ports %d and %d, camera %dx%d; %zu step-1 and %zu step-2 frames, "
-              "%zu triggers\n",
-              rig.generators_port(1), rig.generators_port(2), rig.sim().camera().width,
-              rig.sim().camera().height, rig.sim().step1_frames().size(),
-              rig.sim().step2_frames().size(), rig.sim().triggers().size());
+  std::printf(
+      "  generators on ports %d and %d, camera %dx%d; %zu step-1 and %zu step-2 frames, "
+      "%zu triggers\n",
+      rig.generators_port(1), rig.generators_port(2), rig.sim().camera().width,
+      rig.sim().camera().height, rig.sim().step1_frames().size(), rig.sim().step2_frames().size(),
+      rig.sim().triggers().size());
 
   std::vector<std::string> notes;
   const orchestrator::OrchestratorOptions options = rig.MakeOrchestratorOptions(out);
@@ -91,11 +97,12 @@ void RunDemo(const DemoArgs& args) {
   size_t rejected = 0;
   for (const auto& f : session.frames) rejected += f.accepted ? 0 : 1;
   sim::WriteTruth(out, sim::MakeTruth(rig.sim()));
-  std::printf("[%6.1f s] acquisition done: %zu frames (%zu rejected), Hall %llu + %llu readings; "
-              "truth written to %s/truth\n",
-              elapsed(), session.frames.size(), rejected,
-              static_cast<unsigned long long>(session.background_readings),
-              static_cast<unsigned long long>(session.actual_readings), out.string().c_str());
+  std::printf(
+      "[%6.1f s] acquisition done: %zu frames (%zu rejected), Hall %llu + %llu readings; "
+      "truth written to %s/truth\n",
+      elapsed(), session.frames.size(), rejected,
+      static_cast<unsigned long long>(session.background_readings),
+      static_cast<unsigned long long>(session.actual_readings), out.string().c_str());
 
   const std::string dir = Quote(out.string());
   const bool solved = RunSelf("solve " + dir + " --threads 2", &notes);
@@ -110,11 +117,21 @@ void RunDemo(const DemoArgs& args) {
   } else {
     std::printf("SKIPPED: Hall calibration (needs the solver's mirror poses)\n");
   }
+  if (!args.store.empty()) {
+    store::ImportOptions io;
+    io.rig_id = "demo-rig (mock instruments)";
+    io.mirror_id = "simulated MSM, seed " + std::to_string(ro.sim.seed);
+    io.note = "msmcal demo";
+    const store::SystemClock clock;
+    auto stored = store::ImportInterchange(out, args.store, clock, io);
+    if (fs::exists(out / "results")) store::PutResultsFromFolder(*stored, out / "results");
+    std::printf("session stored in %s\n", args.store.c_str());
+    notes.push_back("session stored in " + args.store);
+  }
   const orchestrator::SessionReport report = orchestrator::BuildSessionReport(out, notes);
   interchange::WriteFileAtomically(out / "report.html", report.html);
   std::printf("\n%s", report.text.c_str());
-  std::printf("\nreport: %s   (total %.1f s)\n", (out / "report.html").string().c_str(),
-              elapsed());
+  std::printf("\nreport: %s   (total %.1f s)\n", (out / "report.html").string().c_str(), elapsed());
   if (!solved || !hall_ok) throw CLI::RuntimeError(1);
 }
 
@@ -127,6 +144,9 @@ void AddDemoCommands(CLI::App& app) {
   demo->add_option("--config", args->config, "Simulator configuration (config/sim.yaml keys)");
   demo->add_option("--camera-address", args->camera_address,
                    "Address the mock GigE Vision camera serves on (port 3956)");
+  demo->add_option("--store", args->store,
+                   "Also import the finished session (with results/) into this new session-store "
+                   "folder");
   demo->callback([args] { RunDemo(*args); });
 }
 

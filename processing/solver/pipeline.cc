@@ -1,6 +1,7 @@
 #include "processing/solver/pipeline.h"
 
 #include <Eigen/Dense>
+#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
 #include <map>
@@ -288,7 +289,19 @@ SolveOutput SolveRecording(const dataset::Recording& rec, const ImageLoader& loa
           {f.file, "sliding board (" + SizeText(rec.sliding_board) + ") not found"});
       continue;
     }
-    const auto dots = DotsOnBoard(vision::DetectDots(img, o.dots), *boards[1], sliding_size);
+    auto dots = DotsOnBoard(vision::DetectDots(img, o.dots), *boards[1], sliding_size);
+    if (dots.size() > f.beams.size()) {
+      // Surplus blobs (checkerboard-junction residue): keep the roundest, say so.
+      auto elongation = [](const vision::Dot& d) {
+        const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> es(d.cov_px2);
+        return es.eigenvalues()(1) / std::max(es.eigenvalues()(0), 1e-12);
+      };
+      std::stable_sort(dots.begin(), dots.end(),
+                       [&](const auto& a, const auto& b) { return elongation(a) < elongation(b); });
+      out.notes.push_back(f.file + ": kept the " + std::to_string(f.beams.size()) +
+                          " roundest of " + std::to_string(dots.size()) + " blobs");
+      dots.resize(f.beams.size());
+    }
     if (dots.size() != f.beams.size()) {
       out.dropped.push_back({f.file, "found " + std::to_string(dots.size()) +
                                          " laser dots, expected " + std::to_string(f.beams.size()) +

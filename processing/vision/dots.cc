@@ -151,7 +151,10 @@ std::vector<Dot> DetectDots(const cv::Mat& image, const DotOptions& options,
                             DotRejections* rejections) {
   if (const std::string err = options.Validate(); !err.empty())
     throw std::invalid_argument("DotOptions: " + err);
-  cv::Mat signal = image;
+  // The top-hat goes into its own buffer: the caller's image is const and is read below for
+  // saturation.
+  cv::Mat signal;
+  if (image.channels() != 1 || options.background_kernel_px <= 0) signal = image;
   if (image.channels() == 1 && options.background_kernel_px > 0) {
     // Top-hat: bright structures smaller than the kernel (dots) over the local background
     // (board squares).

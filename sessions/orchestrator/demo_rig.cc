@@ -29,8 +29,7 @@ DemoRig::DemoRig(const DemoRigOptions& options) : options_(options) {
   cam.frame_rate_hz = options.camera_frame_rate_hz;
   std::string error;
   camera_ = sim::MockGvCamera::Start(cam, world_->MakeFrameSource(), &error);
-  if (!camera_)
-    throw std::runtime_error("mock camera on " + options.camera_address + ": " + error);
+  if (!camera_) throw std::runtime_error("mock camera on " + options.camera_address + ": " + error);
 }
 
 DemoRig::~DemoRig() {
@@ -46,10 +45,18 @@ gen::RigGeneratorConfig DemoRig::GeneratorConfig() const {
   c.unit1.name = "generator1";
   c.unit1.link.host = "127.0.0.1";
   c.unit1.link.port = generators_->port(1);
-  c.unit1.limits[0] = {"fast_coil", 2.0 * m.fast.amplitude_vpp, 0.5, 0.5 * m.fast.frequency_hz,
-                       1.5 * m.fast.frequency_hz, 1.0};
-  c.unit1.limits[1] = {"slow_coil", 2.0 * m.slow.amplitude_vpp, 0.5, 0.5 * m.slow.frequency_hz,
-                       1.5 * m.slow.frequency_hz, 1.0};
+  c.unit1.limits[0] = {"fast_coil",
+                       2.0 * m.fast.amplitude_vpp,
+                       0.5,
+                       0.5 * m.fast.frequency_hz,
+                       1.5 * m.fast.frequency_hz,
+                       1.0};
+  c.unit1.limits[1] = {"slow_coil",
+                       2.0 * m.slow.amplitude_vpp,
+                       0.5,
+                       0.5 * m.slow.frequency_hz,
+                       1.5 * m.slow.frequency_hz,
+                       1.0};
   c.unit2.name = "generator2";
   c.unit2.link.host = "127.0.0.1";
   c.unit2.link.port = generators_->port(2);
@@ -70,6 +77,7 @@ OrchestratorOptions DemoRig::MakeOrchestratorOptions(const std::filesystem::path
   o.camera_address = options_.camera_address;
   o.camera_frame_rate_hz = options_.camera_frame_rate_hz;
   o.mcu.stall_timeout_ms = 2000;
+  o.background_seconds = 0;  // the mock MCU ends with the simulator's recording
   o.mcu_rate_hz = static_cast<uint16_t>(options_.sim.hall.sample_rate_hz);
   return o;
 }

@@ -1,6 +1,8 @@
 #include "sessions/orchestrator/orchestrator.h"
 
+#include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <memory>
 #include <mutex>
@@ -13,6 +15,7 @@
 #include "drivers/generator/function_generator.h"
 #include "drivers/generator/rig_generators.h"
 #include "drivers/generator/safe_state.h"
+#include "processing/signal/rig_signals.h"
 #include "sessions/interchange/interchange_io.h"
 
 namespace msmcal::orchestrator {
@@ -34,8 +37,8 @@ std::string OrchestratorOptions::Validate() const {
   if (max_gate_attempts < 1)
     return "OrchestratorOptions.max_gate_attempts = " + std::to_string(max_gate_attempts) +
            ": must be >= 1";
-  if (!(hall_max_seconds >= 0))
-    return "OrchestratorOptions.hall_max_seconds = " + std::to_string(hall_max_seconds) +
+  if (!(background_seconds >= 0))
+    return "OrchestratorOptions.background_seconds = " + std::to_string(background_seconds) +
            ": must be >= 0";
   if (std::string e = gate.Validate(); !e.empty()) return "OrchestratorOptions.gate: " + e;
   if (std::string e = generators.Validate(); !e.empty())
@@ -64,11 +67,14 @@ class SessionLog {
     if (file_) std::fclose(file_);
   }
   void Line(const std::string& text) {
-    std::lock_guard<std::mutex> lock(mu_);
-    const double t =
-        std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
-    std::fprintf(file_, "[%8.3f s] %s\n", t, text.c_str());
-    std::fflush(file_);
+    {
+      std::lock_guard<std::mutex> lock(mu_);
+      const double t =
+          std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
+      std::fprintf(file_, "[%8.3f s] %s\n", t, text.c_str());
+      std::fflush(file_);
+    }
+    // Outside the lock: the safe-state watcher may log while the callback runs.
     if (progress_) progress_(text);
   }
 
@@ -110,8 +116,8 @@ struct Instruments {
   std::unique_ptr<hall_mcu::HallSensor> mcu;  // the background MCU link, checked
 };
 
-RigCheckResult CheckRig(const OrchestratorOptions& options, const dataset::Recording& plan,
-                        RigOperator& rig_operator, Instruments* inst, std::string* mcu_device) {
+RigCheckResult CheckRig(const OrchestratorOptions& options, const dataset::Recording* plan,
+                        const std::string& mcu_device, Instruments* inst) {
   RigCheckResult r;
   // Generators: identity (on open), reference lock, signal design within limits.
   try {
@@ -135,8 +141,9 @@ RigCheckResult CheckRig(const OrchestratorOptions& options, const dataset::Recor
       inst->master->SetReference(gen::ReferenceSource::kInternal);
       inst->slave->SetReference(gen::ReferenceSource::kExternal);
       if (!inst->slave->ReferenceLocked())
-        r.problems.push_back("generator 2 is not locked to generator 1's 10 MHz reference "
-                             "(check the reference cable)");
+        r.problems.push_back(
+            "generator 2 is not locked to generator 1's 10 MHz reference "
+            "(check the reference cable)");
       else
         r.found.push_back("generator 2 locked to the external 10 MHz reference");
     } catch (const std::exception& e) {
@@ -144,7 +151,10 @@ RigCheckResult CheckRig(const OrchestratorOptions& options, const dataset::Recor
     }
   }
   try {
-    (void)gen::PlanRigSignals(options.generators.signals);
+    if (plan)
+      (void)PlanSessionSignals(options.generators.signals, *plan);
+    else
+      (void)gen::PlanRigSignals(options.generators.signals);
   } catch (const std::exception& e) {
     r.problems.push_back(std::string("signal design: ") + e.what());
   }
@@ -157,13 +167,13 @@ RigCheckResult CheckRig(const OrchestratorOptions& options, const dataset::Recor
     inst->cam = std::move(opened.camera);
     const camera::CameraInfo info = inst->cam->Info();
     r.found.push_back("camera " + info.vendor + " " + info.model + " " + info.serial + " " +
-                      std::to_string(info.sensor_width) + "x" +
-                      std::to_string(info.sensor_height));
-    if (info.sensor_width != plan.camera.width || info.sensor_height != plan.camera.height) {
+                      std::to_string(info.sensor_width) + "x" + std::to_string(info.sensor_height));
+    if (plan &&
+        (info.sensor_width != plan->camera.width || info.sensor_height != plan->camera.height)) {
       r.problems.push_back("camera sensor is " + std::to_string(info.sensor_width) + "x" +
                            std::to_string(info.sensor_height) + " but camera.yaml's is " +
-                           std::to_string(plan.camera.width) + "x" +
-                           std::to_string(plan.camera.height));
+                           std::to_string(plan->camera.width) + "x" +
+                           std::to_string(plan->camera.height));
     }
     bool mono8 = false;
     for (auto f : info.pixel_formats) mono8 = mono8 || f == camera::PixelFormat::kMono8;
@@ -180,9 +190,8 @@ RigCheckResult CheckRig(const OrchestratorOptions& options, const dataset::Recor
   }
   // Hall MCU: identity and a status frame on the link.
   try {
-    *mcu_device = rig_operator.PrepareHallRecording(HallRun::kBackground);
     hall_mcu::HallMcuOptions link = options.mcu;
-    link.device = *mcu_device;
+    link.device = mcu_device;
     inst->mcu = hall_mcu::OpenHallMcu(link);
     hall_mcu::DeviceInfo dev;
     if (auto c = inst->mcu->Identify(&dev); !c.ok) {
@@ -201,19 +210,24 @@ RigCheckResult CheckRig(const OrchestratorOptions& options, const dataset::Recor
 
 // Records one Hall recording into hall/<name>.csv through the driver; returns the recorder's
 // result. Throws when the recording ended abnormally.
+// With `during`, the recording runs while it does and is stopped when it returns; without, it
+// runs for max_seconds of MCU time (or to the end of the MCU's data).
 acquisition::HallRecorderResult RecordHall(hall_mcu::HallSensor& sensor, const fs::path& csv,
-                                           const OrchestratorOptions& options,
+                                           const OrchestratorOptions& options, double max_seconds,
                                            const std::function<void()>& during) {
   acquisition::HallCsvWriter writer(csv);
   acquisition::HallRecorderOptions ro;
-  ro.max_seconds = options.hall_max_seconds;
+  ro.max_seconds = max_seconds;
   ro.rate_hz = options.mcu_rate_hz;
   acquisition::HallRecorder recorder(
       sensor, [&writer](const hall_mcu::HallBatch& b) { writer.Write(b); }, ro);
   recorder.Start();
   std::exception_ptr error;
   try {
-    if (during) during();
+    if (during) {
+      during();
+      recorder.Stop();
+    }
   } catch (...) {
     error = std::current_exception();
     recorder.Stop();
@@ -231,6 +245,55 @@ acquisition::HallRecorderResult RecordHall(hall_mcu::HallSensor& sensor, const f
 }
 
 }  // namespace
+
+gen::RigSignalPlan PlanSessionSignals(const gen::RigSignalsConfig& config,
+                                      const dataset::Recording& plan) {
+  gen::RigSignalPlan p = gen::PlanRigSignals(config);
+  const double period = p.trigger.pattern_period_s;
+  if (plan.drive.pattern_period_s > 0 &&
+      std::abs(plan.drive.pattern_period_s - period) > 1e-9 * period) {
+    throw std::invalid_argument(
+        "session plan: drive.pattern_period_s = " + std::to_string(plan.drive.pattern_period_s) +
+        " but the configured drives give " + std::to_string(period));
+  }
+  signal::TriggerDesign d;
+  d.pattern_period_s = period;
+  d.arb = signal::ChooseArbTiming(period, config.trigger);
+  const double rate = d.arb.sample_rate_sps;
+  d.pulse_samples = std::max<int64_t>(
+      1, static_cast<int64_t>(std::ceil(config.trigger.pulse_width_s * rate - 1e-9)));
+  for (const auto& t : plan.triggers) {
+    if (!(t.t_s >= 0 && t.t_s < period))
+      throw std::invalid_argument("session plan: triggers[" + std::to_string(t.j) +
+                                  "].t_s = " + std::to_string(t.t_s) + ": outside [0, " +
+                                  std::to_string(period) + ")");
+    const int64_t index = std::llround(t.t_s * rate) % d.arb.points;
+    d.ideal_times_s.push_back(t.t_s);
+    d.sample_index.push_back(index);
+    d.times_s.push_back(static_cast<double>(index) / rate);
+    d.max_quantisation_error_s =
+        std::max(d.max_quantisation_error_s, std::abs(d.times_s.back() - t.t_s));
+  }
+  d.duty = static_cast<double>(d.pulse_samples * static_cast<int64_t>(plan.triggers.size())) /
+           static_cast<double>(d.arb.points);
+  if (d.duty > config.trigger.max_duty)
+    throw std::invalid_argument("session plan: laser duty " + std::to_string(d.duty) +
+                                " exceeds trigger.max_duty " +
+                                std::to_string(config.trigger.max_duty));
+  p.trigger = d;
+  p.unit2_ch1.arb_samples = signal::TriggerArbSamples(d);
+  p.unit2_ch1.arb_sample_rate_sps = rate;
+  return p;
+}
+
+RigCheckResult CheckRigOnly(const OrchestratorOptions& options, const dataset::Recording* plan,
+                            const std::string& mcu_device) {
+  Instruments inst;
+  RigCheckResult r = CheckRig(options, plan, mcu_device, &inst);
+  if (inst.master) inst.master->SafeState();
+  if (inst.slave) inst.slave->SafeState();
+  return r;
+}
 
 RigCheckError::RigCheckError(const RigCheckResult& result)
     : std::runtime_error(JoinLines(result.problems)), result_(result) {}
@@ -254,7 +317,13 @@ SessionResult RunSession(const OrchestratorOptions& options, const dataset::Reco
   // Rig check.
   Instruments inst;
   std::string background_device;
-  result.rig_check = CheckRig(options, plan, rig_operator, &inst, &background_device);
+  try {
+    background_device = rig_operator.PrepareHallRecording(HallRun::kBackground);
+  } catch (const std::exception& e) {
+    result.rig_check.problems.push_back(std::string("Hall MCU: ") + e.what());
+  }
+  if (result.rig_check.problems.empty())
+    result.rig_check = CheckRig(options, &plan, background_device, &inst);
   for (const auto& f : result.rig_check.found) log.Line("rig check: " + f);
   if (!result.rig_check.ok) {
     for (const auto& p : result.rig_check.problems) log.Line("rig check PROBLEM: " + p);
@@ -267,22 +336,33 @@ SessionResult RunSession(const OrchestratorOptions& options, const dataset::Reco
 
   // From here on outputs may be on: safe state on signal, exception and exit.
   gen::RigGenerators rig(*inst.master, *inst.slave);
-  bool safe_done = false;
   auto safe_state = [&] {
     const bool ok = rig.SafeState();
     log.Line(ok ? "safe state: generator outputs off (confirmed)"
                 : "safe state: outputs off NOT confirmed by both generators");
-    safe_done = true;
     result.safe_state_confirmed = ok;
   };
-  gen::SafeStateGuard guard(safe_state);
+  // Explicit paths below run safe_state() and Disarm() the guard, so the guard's own action runs
+  // only on SIGINT/SIGTERM.
+  gen::SafeStateGuard guard([&] {
+    log.Line("interrupted (SIGINT/SIGTERM): switching generator outputs off");
+    safe_state();
+  });
   int accepted_total = 0;
   std::vector<dataset::Step1Frame> step1_kept;
   std::vector<dataset::Step2Frame> step2_kept;
   try {
-    rig.Apply(gen::PlanRigSignals(options.generators.signals));
+    const gen::RigSignalPlan signals = PlanSessionSignals(options.generators.signals, plan);
+    rig.Apply(signals);
     rig.VerifyLock();
-    log.Line("generators: drive, laser trigger and clock applied, outputs on, locked");
+    char buf[200];
+    std::snprintf(
+        buf, sizeof(buf),
+        "generators: drives, clock and the plan's %zu laser triggers (arb %lld points "
+        "at %.6g Sa/s, max quantisation %.3g us) applied, outputs on, locked",
+        signals.trigger.times_s.size(), static_cast<long long>(signals.trigger.arb.points),
+        signals.trigger.arb.sample_rate_sps, signals.trigger.max_quantisation_error_s * 1e6);
+    log.Line(buf);
 
     if (camera::Status s = inst.cam->Start(); !s)
       throw std::runtime_error("camera: start streaming: " + s.message);
@@ -300,16 +380,15 @@ SessionResult RunSession(const OrchestratorOptions& options, const dataset::Reco
           camera::FrameResult fr =
               inst.cam->NextFrame(static_cast<int64_t>(options.frame_timeout_ms) * 1000);
           if (fr.status != camera::FrameStatus::kOk)
-            throw std::runtime_error(file + ": camera: " +
-                                     std::string(camera::FrameStatusName(fr.status)) + " " +
-                                     fr.message);
+            throw std::runtime_error(
+                file + ": camera: " + std::string(camera::FrameStatusName(fr.status)) + " " +
+                fr.message);
           if (rig_operator.FrameShowsCurrentSetup(fr.frame.info())) image = FrameToMat(fr.frame);
         }
         GateResult g;
         g.accepted = true;
         if (options.run_quality_gate)
-          g = CheckFrame(image, step, expected, plan.world_board, plan.sliding_board,
-                         options.gate);
+          g = CheckFrame(image, step, expected, plan.world_board, plan.sliding_board, options.gate);
         if (g.accepted) {
           interchange::WriteImageAtomically(out / file, image);
           fo.accepted = true;
@@ -317,6 +396,12 @@ SessionResult RunSession(const OrchestratorOptions& options, const dataset::Reco
           return fo;
         }
         fo.reason = g.reason;
+        if (attempt + 1 == options.max_gate_attempts) {
+          // Kept for inspection, outside the interchange layout.
+          std::string name = file;
+          for (char& c : name) c = c == '/' ? '_' : c;
+          interchange::WriteImageAtomically(out / "rejected" / name, image);
+        }
       }
       return fo;
     };
@@ -341,11 +426,12 @@ SessionResult RunSession(const OrchestratorOptions& options, const dataset::Reco
     // Background Hall recording (mirror top frame removed, coils driven).
     log.Line("Hall: background recording on " + background_device);
     {
-      const auto r = RecordHall(*inst.mcu, out / "hall" / "background.csv", options, nullptr);
+      const auto r = RecordHall(*inst.mcu, out / "hall" / "background.csv", options,
+                                options.background_seconds, nullptr);
       result.background_readings = r.counts.readings_delivered;
       result.background_edges = r.counts.edges_delivered;
-      log.Line("Hall: background " + std::to_string(r.counts.readings_delivered) +
-               " readings, " + std::to_string(r.counts.edges_delivered) + " clock edges, " +
+      log.Line("Hall: background " + std::to_string(r.counts.readings_delivered) + " readings, " +
+               std::to_string(r.counts.edges_delivered) + " clock edges, " +
                std::to_string(r.counts.driver.readings_lost) + " lost (" +
                acquisition::ToString(r.end) + ")");
     }
@@ -357,7 +443,7 @@ SessionResult RunSession(const OrchestratorOptions& options, const dataset::Reco
     link.device = actual_device;
     auto actual_mcu = hall_mcu::OpenHallMcu(link);
     log.Line("Hall: actual recording on " + actual_device + " during step 2");
-    const auto r = RecordHall(*actual_mcu, out / "hall" / "actual.csv", options, [&] {
+    const auto r = RecordHall(*actual_mcu, out / "hall" / "actual.csv", options, 0.0, [&] {
       for (size_t i = 0; i < plan.step2.size(); ++i) {
         rig_operator.PrepareStep2Frame(i);
         FrameOutcome fo = acquire(plan.step2[i].file, 2, ExpectedDots(plan.step2[i]));
@@ -393,10 +479,8 @@ SessionResult RunSession(const OrchestratorOptions& options, const dataset::Reco
   interchange::WriteRecording(out, rec);
   (void)interchange::ReadRecording(out);  // reads back, Hall files included
   log.Line("session written: " + std::to_string(step1_kept.size()) + "/" +
-           std::to_string(plan.step1.size()) + " step-1 and " +
-           std::to_string(step2_kept.size()) + "/" + std::to_string(plan.step2.size()) +
-           " step-2 frames accepted");
-  (void)safe_done;
+           std::to_string(plan.step1.size()) + " step-1 and " + std::to_string(step2_kept.size()) +
+           "/" + std::to_string(plan.step2.size()) + " step-2 frames accepted");
   return result;
 }
 

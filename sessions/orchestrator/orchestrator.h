@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "drivers/generator/rig_config.h"
+#include "drivers/generator/rig_generators.h"
 #include "drivers/hall_mcu/hall_sensor.h"
 #include "processing/dataset/recording.h"
 #include "sessions/orchestrator/quality_gate.h"
@@ -25,21 +26,24 @@
 namespace msmcal::orchestrator {
 
 struct OrchestratorOptions {
-  std::filesystem::path out_dir;         // created; must be empty or absent
-  gen::RigGeneratorConfig generators;    // unit addresses, limits and the signals to apply
+  std::filesystem::path out_dir;             // created; must be empty or absent
+  gen::RigGeneratorConfig generators;        // unit addresses, limits and the signals to apply
   std::string camera_address = "127.0.0.1";  // GigE Vision camera, opened by address only
   double camera_frame_rate_hz = 10.0;
-  int frame_timeout_ms = 10000;          // per NextFrame
-  int max_stale_frames = 50;             // frames discarded while waiting for the new setup
-  int max_gate_attempts = 2;             // fresh frames tried per frame before it is rejected
+  int frame_timeout_ms = 10000;  // per NextFrame
+  int max_stale_frames = 50;     // frames discarded while waiting for the new setup
+  int max_gate_attempts = 2;     // fresh frames tried per frame before it is rejected
   bool run_quality_gate = true;
   GateOptions gate;
-  hall_mcu::HallMcuOptions mcu;          // device is asked from the operator per recording
+  hall_mcu::HallMcuOptions mcu;  // device is asked from the operator per recording
   uint16_t mcu_rate_hz = 1000;
-  double hall_max_seconds = 0;           // 0: until the MCU's source ends / no limit
+  // Background recording length (MCU time); 0: until the MCU reports the end of its data (mock
+  // and replay sources only; a real MCU streams forever). The actual recording runs for the whole
+  // of step 2 and is stopped when step 2 ends.
+  double background_seconds = 12.0;
   // Test hook: throw after this many accepted frames (< 0: never) to exercise the safe state.
   int fail_after_frames = -1;
-  std::string Validate() const;          // empty when valid; names field, value, constraint
+  std::string Validate() const;  // empty when valid; names field, value, constraint
 };
 
 // One line of progress ("step 1: frame 3/15 accepted").
@@ -66,6 +70,22 @@ struct SessionResult {
   std::filesystem::path folder;
 };
 
+// The generator plan for a session: drives and clock from the configuration's signal design, and
+// the laser trigger arb rebuilt from the session plan's trigger table (so that the laser fires at
+// exactly the times session.yaml records, to within half an arb sample). Throws
+// std::invalid_argument when the plan's pattern period differs from the configured drive's or
+// the table violates the trigger limits (duty).
+gen::RigSignalPlan PlanSessionSignals(const gen::RigSignalsConfig& config,
+                                      const dataset::Recording& plan);
+
+// The rig check alone (what RunSession does first): identifies both generators, resets them and
+// checks that unit 2 locks to unit 1's 10 MHz reference, checks the signal design against the
+// limits, opens the camera by address (sensor size against `plan`'s camera when given, Mono8),
+// identifies the Hall MCU on `mcu_device` and asks for a status frame. Leaves every generator
+// output off. Never throws for instrument problems: they are listed in the result.
+RigCheckResult CheckRigOnly(const OrchestratorOptions& options, const dataset::Recording* plan,
+                            const std::string& mcu_device);
+
 class RigCheckError : public std::runtime_error {
  public:
   RigCheckError(const RigCheckResult& result);
@@ -78,8 +98,9 @@ class RigCheckError : public std::runtime_error {
 // Runs the whole acquisition. `plan` holds the session's boards, beams, drive, clock, trigger
 // table and frame lists (images and Hall recordings are what this acquires); it is written as
 // session.yaml/camera.yaml last, once everything else is in place. Rejected frames are left out
-// of the written session and listed in the result. Throws RigCheckError (the list of problems)
-// when the rig check fails, std::runtime_error for other failures (after the safe state).
+// of the written session, listed in the result and kept as rejected/<step>_<name>.png. Throws
+// RigCheckError (the list of problems) when the rig check fails, std::runtime_error for other
+// failures (after the safe state).
 SessionResult RunSession(const OrchestratorOptions& options, const dataset::Recording& plan,
                          RigOperator& rig_operator, const ProgressFn& progress);
 

@@ -8,6 +8,8 @@ std::string GateOptions::Validate() const {
   if (!(max_saturated_pixel_fraction >= 0 && max_saturated_pixel_fraction <= 1))
     return "GateOptions.max_saturated_pixel_fraction = " +
            std::to_string(max_saturated_pixel_fraction) + ": must be in [0, 1]";
+  if (max_extra_dots < 0)
+    return "GateOptions.max_extra_dots = " + std::to_string(max_extra_dots) + ": must be >= 0";
   if (!(outline_margin_squares >= 0))
     return "GateOptions.outline_margin_squares = " + std::to_string(outline_margin_squares) +
            ": must be >= 0";
@@ -28,8 +30,8 @@ double SaturatedFraction(const cv::Mat& image) {
 }  // namespace
 
 GateResult CheckFrame(const cv::Mat& image, int step, int dots_expected,
-                      const dataset::BoardSpec& world_board, const dataset::BoardSpec& sliding_board,
-                      const GateOptions& options) {
+                      const dataset::BoardSpec& world_board,
+                      const dataset::BoardSpec& sliding_board, const GateOptions& options) {
   GateResult r;
   r.dots_expected = dots_expected;
   if (image.empty()) {
@@ -70,9 +72,11 @@ GateResult CheckFrame(const cv::Mat& image, int step, int dots_expected,
   // `signal = image` shares the buffer), and the frame must be saved unchanged.
   const std::vector<vision::Dot> dots = vision::DetectDots(image.clone(), options.dots);
   r.dots_found = static_cast<int>(dots.size());
-  if (r.dots_found != dots_expected) {
-    r.reason = "expected " + std::to_string(dots_expected) + " dots, found " +
-               std::to_string(r.dots_found);
+  if (r.dots_found < dots_expected || r.dots_found > dots_expected + options.max_extra_dots) {
+    r.reason = "expected " + std::to_string(dots_expected) + " dots";
+    if (options.max_extra_dots > 0)
+      r.reason += " (up to " + std::to_string(options.max_extra_dots) + " extra detections)";
+    r.reason += ", found " + std::to_string(r.dots_found);
     return r;
   }
   const auto outline = vision::SquaresOutline(*found[0], step == 1 ? sliding : world,

@@ -23,6 +23,10 @@ struct GateOptions {
   // Dots must lie inside the board's squares outline grown by this many squares (the board
   // plane's visible printed area).
   double outline_margin_squares = 1.0;
+  // Detections allowed beyond the expected dots: the dot detector may report small board-corner
+  // residue near a board edge (the solver's association ignores it). Fewer dots than expected
+  // always reject.
+  int max_extra_dots = 1;
   std::string Validate() const;  // empty when valid; names field, value and constraint
 };
 
@@ -36,7 +40,7 @@ struct GateResult {
 
 // step: 1 or 2. dots_expected: beams x max(1, triggers) of the frame.
 GateResult CheckFrame(const cv::Mat& image, int step, int dots_expected,
-                      const dataset::BoardSpec& world_board, const dataset::BoardSpec& sliding_board,
-                      const GateOptions& options);
+                      const dataset::BoardSpec& world_board,
+                      const dataset::BoardSpec& sliding_board, const GateOptions& options);
 
 }  // namespace msmcal::orchestrator

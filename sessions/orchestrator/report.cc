@@ -30,10 +30,14 @@ std::string Fmt(const char* format, double v) {
 std::string Escape(const std::string& s) {
   std::string o;
   for (char c : s) {
-    if (c == '<') o += "&lt;";
-    else if (c == '>') o += "&gt;";
-    else if (c == '&') o += "&amp;";
-    else o += c;
+    if (c == '<')
+      o += "&lt;";
+    else if (c == '>')
+      o += "&gt;";
+    else if (c == '&')
+      o += "&amp;";
+    else
+      o += c;
   }
   return o;
 }
@@ -100,8 +104,8 @@ std::string SvgPlot(const std::string& title, const std::string& x_label,
   std::ostringstream o;
   o << "<svg xmlns='http://www.w3.org/2000/svg' width='" << w << "' height='" << h
     << "' font-family='sans-serif' font-size='11'>";
-  o << "<rect x='" << l << "' y='" << t << "' width='" << (w - l - r) << "' height='"
-    << (h - t - b) << "' fill='none' stroke='#888'/>";
+  o << "<rect x='" << l << "' y='" << t << "' width='" << (w - l - r) << "' height='" << (h - t - b)
+    << "' fill='none' stroke='#888'/>";
   o << "<text x='" << w / 2 << "' y='18' text-anchor='middle' font-size='13'>" << Escape(title)
     << "</text>";
   o << "<text x='" << w / 2 << "' y='" << h - 10 << "' text-anchor='middle'>" << Escape(x_label)
@@ -112,15 +116,16 @@ std::string SvgPlot(const std::string& title, const std::string& x_label,
     const double xv = x0 + (x1 - x0) * k / 4, yv = y0 + (y1 - y0) * k / 4;
     o << "<text x='" << px(xv) << "' y='" << h - b + 14 << "' text-anchor='middle'>"
       << Fmt("%.4g", xv) << "</text>";
-    o << "<text x='" << l - 4 << "' y='" << py(yv) + 4 << "' text-anchor='end'>"
-      << Fmt("%.4g", yv) << "</text>";
+    o << "<text x='" << l - 4 << "' y='" << py(yv) + 4 << "' text-anchor='end'>" << Fmt("%.4g", yv)
+      << "</text>";
   }
   int legend = 0;
   for (const auto& s : series) {
     const size_t n = std::min(s.x.size(), s.y.size());
     if (s.line) {
       o << "<polyline fill='none' stroke='" << s.colour << "' stroke-width='1.2' points='";
-      for (size_t i = 0; i < n; ++i) o << Fmt("%.1f", px(s.x[i])) << ',' << Fmt("%.1f", py(s.y[i])) << ' ';
+      for (size_t i = 0; i < n; ++i)
+        o << Fmt("%.1f", px(s.x[i])) << ',' << Fmt("%.1f", py(s.y[i])) << ' ';
       o << "'/>";
     } else {
       for (size_t i = 0; i < n; ++i)
@@ -128,8 +133,8 @@ std::string SvgPlot(const std::string& title, const std::string& x_label,
           << "' r='2' fill='" << s.colour << "'/>";
     }
     if (!s.name.empty()) {
-      o << "<text x='" << l + 8 << "' y='" << t + 14 + 13 * legend << "' fill='" << s.colour
-        << "'>" << Escape(s.name) << "</text>";
+      o << "<text x='" << l + 8 << "' y='" << t + 14 + 13 * legend << "' fill='" << s.colour << "'>"
+        << Escape(s.name) << "</text>";
       ++legend;
     }
   }
@@ -162,8 +167,10 @@ SessionReport BuildSessionReport(const fs::path& dir,
   const fs::path res = dir / "results";
   const bool have_truth = fs::exists(dir / "truth" / "mirror_planes.csv");
   sim::SimTruth truth;
-  if (have_truth) truth = sim::ReadTruth(dir);
-  else rep.skipped.push_back("comparison with truth: no truth/ folder (not a simulated session)");
+  if (have_truth)
+    truth = sim::ReadTruth(dir);
+  else
+    rep.skipped.push_back("comparison with truth: no truth/ folder (not a simulated session)");
 
   std::vector<std::string> plots;
   // Table I: planes vs truth, validation.
@@ -205,13 +212,14 @@ SessionReport BuildSessionReport(const fs::path& dir,
       rep.alpha_rms_vs_truth_deg = Rms(ea);
       rep.beta_rms_vs_truth_deg = Rms(eb);
       rep.trans_rms_vs_truth_mm = Rms(et);
-      plots.push_back(SvgPlot("Scan pattern: mirror pose per trigger", "alpha (deg)",
-                              "beta (deg)", {tru, est}));
+      plots.push_back(SvgPlot("Scan pattern: mirror pose per trigger", "alpha (deg)", "beta (deg)",
+                              {tru, est}));
       PlotSeries dots{"true dot centres (step 2 scan frames)", {}, {}, false, "#1f77b4"};
       for (const auto& d : truth.dots)
-        if (d.j >= 0 && d.file.rfind("step2/", 0) == 0) dots.x.push_back(d.u_px), dots.y.push_back(d.v_px);
-      plots.push_back(SvgPlot("Scan pattern of laser dots on the world board", "u (px)",
-                              "v (px)", {dots}, /*y_down=*/true));
+        if (d.j >= 0 && d.file.rfind("step2/", 0) == 0)
+          dots.x.push_back(d.u_px), dots.y.push_back(d.v_px);
+      plots.push_back(SvgPlot("Scan pattern of laser dots on the world board", "u (px)", "v (px)",
+                              {dots}, /*y_down=*/true));
     }
     if (fs::exists(res / "validation_detail.csv")) {
       const auto rows = ReadNumericCsv(res / "validation_detail.csv");
@@ -223,16 +231,17 @@ SessionReport BuildSessionReport(const fs::path& dir,
         sc.x.push_back(r.count("predicted_sigma_px") ? r.at("predicted_sigma_px") : 0);
         sc.y.push_back(e);
       }
-      plots.push_back(SvgHistogram("Validation-beam residuals (proposed model)", "error (px)",
-                                   err, 20));
-      plots.push_back(SvgPlot("Uncertainty: predicted sigma vs actual error", "predicted sigma (px)",
-                              "error (px)", {sc}));
+      plots.push_back(
+          SvgHistogram("Validation-beam residuals (proposed model)", "error (px)", err, 20));
+      plots.push_back(SvgPlot("Uncertainty: predicted sigma vs actual error",
+                              "predicted sigma (px)", "error (px)", {sc}));
     } else {
       rep.skipped.push_back("residual plots: results/validation_detail.csv missing");
     }
   } else {
-    rep.skipped.push_back("Table I figures: results/mirror_planes.csv or summary.json missing "
-                          "(solver did not run or failed)");
+    rep.skipped.push_back(
+        "Table I figures: results/mirror_planes.csv or summary.json missing "
+        "(solver did not run or failed)");
   }
 
   // Table II: Hall model.
@@ -248,8 +257,10 @@ SessionReport BuildSessionReport(const fs::path& dir,
         const YAML::Node tr = y["test_rms"];
         const char* keys[3] = {"alpha_deg", "beta_deg", "trans_mm"};
         for (int k = 0; k < 3; ++k) {
-          if (tr.IsSequence() && tr.size() == 3) rep.test_rms[k] = tr[k].as<double>();
-          else if (tr.IsMap() && tr[keys[k]]) rep.test_rms[k] = tr[keys[k]].as<double>();
+          if (tr.IsSequence() && tr.size() == 3)
+            rep.test_rms[k] = tr[k].as<double>();
+          else if (tr.IsMap() && tr[keys[k]])
+            rep.test_rms[k] = tr[keys[k]].as<double>();
         }
       }
     } catch (const YAML::Exception& e) {
@@ -267,8 +278,9 @@ SessionReport BuildSessionReport(const fs::path& dir,
       PlotSeries ta{"true alpha", {}, {}, true, "#2ca02c"};
       PlotSeries pb{"Hall prediction beta", {}, {}, false, "#ff7f0e"};
       PlotSeries tb{"true beta", {}, {}, true, "#1f77b4"};
-      for (const auto& p : tr) ta.x.push_back(p.t_s), ta.y.push_back(p.alpha_deg),
-                              tb.x.push_back(p.t_s), tb.y.push_back(p.beta_deg);
+      for (const auto& p : tr)
+        ta.x.push_back(p.t_s), ta.y.push_back(p.alpha_deg), tb.x.push_back(p.t_s),
+            tb.y.push_back(p.beta_deg);
       for (size_t i = 0; i < rows.size(); ++i) {
         const auto& r = rows[i];
         double ph = std::fmod(r.at("t_s"), period);
@@ -292,8 +304,9 @@ SessionReport BuildSessionReport(const fs::path& dir,
       rep.skipped.push_back("Hall prediction vs truth: results/hall_poses.csv or truth missing");
     }
   } else {
-    rep.skipped.push_back("Table II figures: results/hall_model.yaml missing (Hall calibration "
-                          "did not run or failed)");
+    rep.skipped.push_back(
+        "Table II figures: results/hall_model.yaml missing (Hall calibration "
+        "did not run or failed)");
   }
 
   // Text.
@@ -301,17 +314,22 @@ SessionReport BuildSessionReport(const fs::path& dir,
   t << "== Table I style: mirror poses ==\n";
   if (rep.have_planes) {
     t << "  scan planes solved:                 " << rep.planes << "\n";
-    t << "  mean spanning angle:                " << Fmt("%.2f deg", rep.mean_spanning_angle_deg) << "\n";
+    t << "  mean spanning angle:                " << Fmt("%.2f deg", rep.mean_spanning_angle_deg)
+      << "\n";
     t << "  validation-beam error, baseline:    " << Fmt("%.4f deg", rep.baseline_rms_deg)
       << Fmt(" (%.3f px) RMS\n", rep.baseline_rms_px);
     t << "  validation-beam error, proposed:    " << Fmt("%.4f deg", rep.validation_rms_deg)
-      << Fmt(" (%.3f px) RMS", rep.validation_rms_px)
-      << " over " << rep.validation_count << " dots\n";
-    t << "  normalised validation RMS:          " << Fmt("%.2f", rep.normalised_validation_rms) << "\n";
+      << Fmt(" (%.3f px) RMS", rep.validation_rms_px) << " over " << rep.validation_count
+      << " dots\n";
+    t << "  normalised validation RMS:          " << Fmt("%.2f", rep.normalised_validation_rms)
+      << "\n";
     if (have_truth) {
-      t << "  plane normal error vs truth:        " << Fmt("%.4f deg RMS\n", rep.normal_rms_vs_truth_deg);
-      t << "  alpha / beta / trans vs truth:      " << Fmt("%.4f deg / ", rep.alpha_rms_vs_truth_deg)
-        << Fmt("%.4f deg / ", rep.beta_rms_vs_truth_deg) << Fmt("%.4f mm RMS\n", rep.trans_rms_vs_truth_mm);
+      t << "  plane normal error vs truth:        "
+        << Fmt("%.4f deg RMS\n", rep.normal_rms_vs_truth_deg);
+      t << "  alpha / beta / trans vs truth:      "
+        << Fmt("%.4f deg / ", rep.alpha_rms_vs_truth_deg)
+        << Fmt("%.4f deg / ", rep.beta_rms_vs_truth_deg)
+        << Fmt("%.4f mm RMS\n", rep.trans_rms_vs_truth_mm);
     }
   } else {
     t << "  (skipped)\n";
@@ -322,12 +340,14 @@ SessionReport BuildSessionReport(const fs::path& dir,
     t << "  test RMS alpha / beta / trans:      " << Fmt("%.4f deg / ", rep.test_rms[0])
       << Fmt("%.4f deg / ", rep.test_rms[1]) << Fmt("%.4f mm\n", rep.test_rms[2]);
     t << "  delta_t estimated:                  " << Fmt("%.4f ms", rep.delta_t_s * 1e3);
-    if (have_truth) t << Fmt(" (truth %.4f ms", rep.delta_t_truth_s * 1e3)
-                      << Fmt(", error %.4f ms)", (rep.delta_t_s - rep.delta_t_truth_s) * 1e3);
+    if (have_truth)
+      t << Fmt(" (truth %.4f ms", rep.delta_t_truth_s * 1e3)
+        << Fmt(", error %.4f ms)", (rep.delta_t_s - rep.delta_t_truth_s) * 1e3);
     t << "\n";
     if (rep.have_hall_vs_truth)
       t << "  Hall prediction vs true pose:       " << Fmt("%.4f deg / ", rep.hall_rms_vs_truth[0])
-        << Fmt("%.4f deg / ", rep.hall_rms_vs_truth[1]) << Fmt("%.4f mm RMS\n", rep.hall_rms_vs_truth[2]);
+        << Fmt("%.4f deg / ", rep.hall_rms_vs_truth[1])
+        << Fmt("%.4f mm RMS\n", rep.hall_rms_vs_truth[2]);
   } else {
     t << "  (skipped)\n";
   }

@@ -94,5 +94,26 @@ TEST(PipelineSimTest, RecoversBeamsPlanesAndHonestSigmas) {
   }
 }
 
+TEST(PipelineErrorsTest, UnreadableImageNamesTheFile) {
+  sim::SimOptions o;
+  const sim::RigSimulator simulator(o);
+  const dataset::Recording rec = simulator.MakeRecording(/*with_hall=*/false);
+  try {
+    SolveRecording(rec, [](const std::string&) { return cv::Mat(); });
+    FAIL() << "expected SolveError";
+  } catch (const SolveError& e) {
+    EXPECT_NE(std::string(e.what()).find(rec.step1[0].file + ": cannot read the image"),
+              std::string::npos)
+        << e.what();
+  }
+}
+
+TEST(PipelineErrorsTest, InvalidOptionsNameTheField) {
+  PipelineOptions o;
+  o.ransac_iterations = 0;
+  EXPECT_NE(o.Validate().find("ransac_iterations = 0"), std::string::npos);
+  EXPECT_THROW(SolveRecording(dataset::Recording{}, {}, o), SolveError);
+}
+
 }  // namespace
 }  // namespace msmcal::solver

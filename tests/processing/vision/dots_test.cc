@@ -77,6 +77,18 @@ TEST(DetectDotsTest, DotOnLightSquareFoundThroughTopHat) {
   EXPECT_NEAR(dots[0].px.y(), 52.6, 0.1);
 }
 
+TEST(DetectDotsTest, LeavesTheCallersImageUntouched) {
+  // Regression: the top-hat used to be written into the caller's buffer (a shared cv::Mat),
+  // darkening frames the orchestrator then saved.
+  cv::Mat1f f(120, 120, 0.06f);
+  f(cv::Rect(30, 30, 50, 50)) = 0.8f;
+  AddSpot(f, 55.4, 52.6, 1.6, 0.3);
+  const cv::Mat image = ToType(f, CV_8U);
+  const cv::Mat before = image.clone();
+  ASSERT_EQ(DetectDots(image).size(), 1u);
+  EXPECT_EQ(cv::norm(image, before, cv::NORM_INF), 0.0);
+}
+
 TEST(DetectDotsTest, RejectsSmallLargeAndElongatedBlobs) {
   cv::Mat1f f(200, 200, 0.0f);
   f(10, 10) = 1.0f;                                        // single hot pixel: too small

@@ -3,8 +3,10 @@
 #include "sessions/orchestrator/orchestrator.h"
 
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <cmath>
+#include <csignal>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -17,6 +19,7 @@
 #include "sessions/interchange/interchange_io.h"
 #include "sessions/orchestrator/demo_rig.h"
 #include "sessions/orchestrator/quality_gate.h"
+#include "sessions/orchestrator/report.h"
 
 namespace msmcal::orchestrator {
 namespace {
@@ -58,9 +61,18 @@ TEST(QualityGate, AcceptsRenderedFramesAndSaysWhyItRejects) {
                                    plan.world_board, plan.sliding_board, gate);
   EXPECT_TRUE(ok.accepted) << ok.reason;
 
-  const GateResult wrong_count = CheckFrame(s1, 1, 7, plan.world_board, plan.sliding_board, gate);
+  const int n = static_cast<int>(plan.step1[0].beams.size());
+  const GateResult wrong_count =
+      CheckFrame(s1, 1, n + 2, plan.world_board, plan.sliding_board, gate);
   EXPECT_FALSE(wrong_count.accepted);
-  EXPECT_NE(wrong_count.reason.find("expected 7 dots"), std::string::npos) << wrong_count.reason;
+  EXPECT_NE(wrong_count.reason.find("expected " + std::to_string(n + 2) + " dots"),
+            std::string::npos)
+      << wrong_count.reason;
+  gate.max_extra_dots = 0;
+  const GateResult too_many = CheckFrame(s1, 1, n - 1, plan.world_board, plan.sliding_board, gate);
+  EXPECT_FALSE(too_many.accepted);
+  EXPECT_NE(too_many.reason.find("found " + std::to_string(n)), std::string::npos)
+      << too_many.reason;
 
   cv::Mat saturated = s1.clone();
   saturated(cv::Rect(0, 0, saturated.cols / 2, saturated.rows / 4)).setTo(255);
@@ -74,6 +86,27 @@ TEST(QualityGate, AcceptsRenderedFramesAndSaysWhyItRejects) {
   EXPECT_NE(none.reason.find("world board"), std::string::npos) << none.reason;
 }
 
+TEST(Report, SvgPlotDrawsEveryPointAndTheHistogramCountsAll) {
+  PlotSeries s{"pts", {0, 1, 2}, {5, 6, 7}, false, "#000"};
+  const std::string svg = SvgPlot("t", "x", "y", {s});
+  size_t circles = 0;
+  for (size_t p = svg.find("<circle"); p != std::string::npos; p = svg.find("<circle", p + 1))
+    ++circles;
+  EXPECT_EQ(circles, 3u);
+  EXPECT_EQ(svg.rfind("</svg>"), svg.size() - 6);
+  EXPECT_NE(SvgHistogram("h", "x", {1, 2, 2, 3}, 2).find("<polyline"), std::string::npos);
+}
+
+TEST(Report, SaysWhatIsMissingInsteadOfInventingFigures) {
+  const fs::path dir = FreshDir("empty_report");
+  fs::create_directories(dir);
+  const SessionReport r = BuildSessionReport(dir, {});
+  EXPECT_FALSE(r.have_planes);
+  EXPECT_FALSE(r.have_hall);
+  EXPECT_EQ(r.skipped.size(), 3u);  // truth, Table I, Table II
+  EXPECT_NE(r.text.find("SKIPPED: Table I figures"), std::string::npos) << r.text;
+}
+
 TEST(Orchestrator, RunsACompleteSessionThroughTheMocksAndTheSolverRecoversTruth) {
   DemoRigOptions ro;
   ro.sim = TinySim();
@@ -81,9 +114,8 @@ TEST(Orchestrator, RunsACompleteSessionThroughTheMocksAndTheSolverRecoversTruth)
   const fs::path dir = FreshDir("e2e");
   OrchestratorOptions options = rig.MakeOrchestratorOptions(dir);
   std::vector<std::string> progress;
-  const SessionResult result =
-      RunSession(options, rig.Plan(), rig.world(),
-                 [&](const std::string& line) { progress.push_back(line); });
+  const SessionResult result = RunSession(
+      options, rig.Plan(), rig.world(), [&](const std::string& line) { progress.push_back(line); });
   EXPECT_TRUE(result.rig_check.ok);
   EXPECT_TRUE(result.safe_state_confirmed);
   EXPECT_FALSE(rig.generators().unit(1).AnyOutputOn());
@@ -133,6 +165,23 @@ TEST(Orchestrator, RunsACompleteSessionThroughTheMocksAndTheSolverRecoversTruth)
   }
   const double rms_deg = std::sqrt(s2 / out.planes.size());
   EXPECT_LT(rms_deg, 0.2) << "plane normal RMS vs truth";
+  // The report reads the same figures back from results/ and truth/.
+  sim::WriteTruth(dir, sim::MakeTruth(rig.sim()));
+  interchange::WriteMirrorPlanesCsv(dir / "results" / "mirror_planes.csv", out.planes);
+  interchange::WriteFileAtomically(
+      dir / "results" / "summary.json",
+      "{\"mirror_poses\": {\"validation_rms_deg\": " +
+          interchange::FormatDouble(out.rms_validation_deg) +
+          ", \"validation_count\": " + std::to_string(out.validation.size()) + "}}\n");
+  const SessionReport report = BuildSessionReport(dir, progress);
+  EXPECT_TRUE(report.have_planes);
+  EXPECT_EQ(report.planes, static_cast<int>(out.planes.size()));
+  EXPECT_NEAR(report.normal_rms_vs_truth_deg, rms_deg, 1e-9);
+  EXPECT_DOUBLE_EQ(report.validation_rms_deg, out.rms_validation_deg);
+  EXPECT_FALSE(report.have_hall);
+  ASSERT_FALSE(report.skipped.empty());
+  EXPECT_NE(report.text.find("SKIPPED: Table II"), std::string::npos) << report.text;
+  EXPECT_NE(report.html.find("<svg"), std::string::npos);
   const std::string log = ReadText(dir / "session_log.txt");
   EXPECT_NE(log.find("rig check passed"), std::string::npos);
   EXPECT_NE(log.find("safe state: generator outputs off (confirmed)"), std::string::npos);
@@ -149,8 +198,8 @@ TEST(Orchestrator, ErrorMidRunSwitchesOutputsOffAndIsLogged) {
   try {
     RunSession(options, rig.Plan(), rig.world(), [&](const std::string& line) {
       if (line.find("step 1: frame 1/") != std::string::npos)
-        outputs_were_on = rig.generators().unit(1).AnyOutputOn() &&
-                          rig.generators().unit(2).AnyOutputOn();
+        outputs_were_on =
+            rig.generators().unit(1).AnyOutputOn() && rig.generators().unit(2).AnyOutputOn();
     });
     FAIL() << "expected the injected failure";
   } catch (const std::runtime_error& e) {
@@ -163,6 +212,66 @@ TEST(Orchestrator, ErrorMidRunSwitchesOutputsOffAndIsLogged) {
   EXPECT_NE(log.find("ERROR: injected failure"), std::string::npos) << log;
   EXPECT_NE(log.find("safe state: generator outputs off"), std::string::npos) << log;
   EXPECT_FALSE(fs::exists(dir / "session.yaml")) << "an aborted session is not complete";
+}
+
+TEST(Orchestrator, SessionSignalsPlayThePlansTriggerTableAndRefuseAnotherPeriod) {
+  DemoRigOptions ro;
+  ro.sim = TinySim();
+  const sim::RigSimulator sim(ro.sim);
+  dataset::Recording plan = sim.MakeRecording(false);
+  // Generator config as the demo rig builds it (ports do not matter here).
+  gen::RigSignalsConfig config;
+  config.fast = {ro.sim.mirror.fast.frequency_hz, ro.sim.mirror.fast.amplitude_vpp, 0, 0};
+  config.slow = {ro.sim.mirror.slow.frequency_hz, ro.sim.mirror.slow.amplitude_vpp, 0, 0};
+  config.laser = {0.0, 5.0, gen::kHighZ};
+  config.clock = {0.0, 3.3, gen::kHighZ};
+  const gen::RigSignalPlan p = PlanSessionSignals(config, plan);
+  ASSERT_EQ(p.trigger.times_s.size(), plan.triggers.size());
+  for (size_t k = 0; k < plan.triggers.size(); ++k)
+    EXPECT_NEAR(p.trigger.times_s[k], plan.triggers[k].t_s, 0.5 / p.trigger.arb.sample_rate_sps);
+  EXPECT_EQ(p.unit2_ch1.arb_samples.size(), static_cast<size_t>(p.trigger.arb.points));
+  plan.drive.pattern_period_s *= 2;
+  EXPECT_THROW(PlanSessionSignals(config, plan), std::invalid_argument);
+}
+
+TEST(Orchestrator, RigCheckAloneFindsEveryInstrumentAndLeavesOutputsOff) {
+  DemoRigOptions ro;
+  ro.sim = TinySim();
+  DemoRig rig(ro);
+  const OrchestratorOptions options = rig.MakeOrchestratorOptions(FreshDir("check_only"));
+  const std::string mcu = rig.world().PrepareHallRecording(HallRun::kBackground);
+  const RigCheckResult ok = CheckRigOnly(options, nullptr, mcu);
+  EXPECT_TRUE(ok.ok) << (ok.problems.empty() ? "" : ok.problems[0]);
+  EXPECT_GE(ok.found.size(), 5u);  // 2 generators, lock, camera, MCU
+  const RigCheckResult bad = CheckRigOnly(options, nullptr, "/nonexistent/tty");
+  EXPECT_FALSE(bad.ok);
+  ASSERT_EQ(bad.problems.size(), 1u);
+  EXPECT_NE(bad.problems[0].find("/nonexistent/tty"), std::string::npos) << bad.problems[0];
+  EXPECT_FALSE(rig.generators().unit(1).AnyOutputOn());
+  EXPECT_FALSE(rig.generators().unit(2).AnyOutputOn());
+}
+
+TEST(OrchestratorDeathTest, SigintSwitchesOutputsOffBeforeTheProcessEnds) {
+  GTEST_FLAG_SET(death_test_style, "threadsafe");
+  const fs::path dir = FreshDir("sigint");
+  EXPECT_EXIT(
+      {
+        DemoRigOptions ro;
+        ro.sim = TinySim();
+        DemoRig rig(ro);
+        RunSession(rig.MakeOrchestratorOptions(dir), rig.Plan(), rig.world(),
+                   [](const std::string& line) {
+                     if (line.find("step 1: frame 2/") == std::string::npos) return;
+                     std::raise(SIGINT);  // Ctrl-C; the guard's watcher ends the process
+                     for (;;) pause();
+                   });
+      },
+      ::testing::KilledBySignal(SIGINT), "");
+  const std::string log = ReadText(dir / "session_log.txt");
+  EXPECT_NE(log.find("step 1: frame 2/"), std::string::npos) << log;
+  EXPECT_NE(log.find("interrupted (SIGINT/SIGTERM)"), std::string::npos) << log;
+  EXPECT_NE(log.find("safe state: generator outputs off (confirmed)"), std::string::npos) << log;
+  EXPECT_FALSE(fs::exists(dir / "session.yaml"));
 }
 
 TEST(Orchestrator, RigCheckRefusesWithTheListOfProblems) {
