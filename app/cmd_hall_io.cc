@@ -30,21 +30,21 @@ namespace {
 namespace fs = std::filesystem;
 
 // "flip@1200", "drop@300", "reset@5000", "stall@9000" or "stall@9000:2000" (ms).
-sim::Fault ParseFault(const std::string& text) {
+sim::McuFault ParseFault(const std::string& text) {
   const size_t at = text.find('@');
   if (at == std::string::npos) {
     throw std::runtime_error("--fault '" + text + "': expected KIND@FRAME, e.g. flip@1200");
   }
   const std::string kind = text.substr(0, at);
-  sim::Fault fault;
+  sim::McuFault fault;
   if (kind == "flip") {
-    fault.kind = sim::FaultKind::kFlipBit;
+    fault.kind = sim::McuFaultKind::kFlipBit;
   } else if (kind == "drop") {
-    fault.kind = sim::FaultKind::kDropByte;
+    fault.kind = sim::McuFaultKind::kDropByte;
   } else if (kind == "reset") {
-    fault.kind = sim::FaultKind::kReset;
+    fault.kind = sim::McuFaultKind::kReset;
   } else if (kind == "stall") {
-    fault.kind = sim::FaultKind::kStall;
+    fault.kind = sim::McuFaultKind::kStall;
   } else {
     throw std::runtime_error("--fault '" + text + "': kind must be flip|drop|reset|stall");
   }

@@ -64,7 +64,7 @@ MockMcu::MockMcu(const MockMcuOptions& options, std::unique_ptr<McuDataSource> s
   }
   faults_ = options_.faults;
   std::stable_sort(faults_.begin(), faults_.end(),
-                   [](const Fault& a, const Fault& b) { return a.data_frame < b.data_frame; });
+                   [](const McuFault& a, const McuFault& b) { return a.data_frame < b.data_frame; });
   settings_ = options_.settings;
   rate_hz_ = options_.rate_hz;
 }
@@ -279,7 +279,7 @@ void MockMcu::EmitData(const McuEvent& event) {
   }
   std::vector<uint8_t> bytes = hall_mcu::EncodeFrame(f);
 
-  const Fault* fault = nullptr;
+  const McuFault* fault = nullptr;
   while (next_fault_ < faults_.size() && faults_[next_fault_].data_frame < data_frames_) {
     ++next_fault_;  // a second fault on an already-handled frame is ignored
   }
@@ -296,7 +296,7 @@ void MockMcu::EmitData(const McuEvent& event) {
   bool intact = true;
   if (fault != nullptr) {
     switch (fault->kind) {
-      case FaultKind::kStall: {
+      case McuFaultKind::kStall: {
         Flush();
         {
           std::lock_guard lock(mu_);
@@ -309,7 +309,7 @@ void MockMcu::EmitData(const McuEvent& event) {
         }
         break;
       }
-      case FaultKind::kFlipBit: {
+      case McuFaultKind::kFlipBit: {
         const size_t bit = rng_() % (bytes.size() * 8);
         bytes[bit / 8] ^= static_cast<uint8_t>(1u << (bit % 8));
         intact = false;
@@ -318,7 +318,7 @@ void MockMcu::EmitData(const McuEvent& event) {
         damaged(log_).push_back(f.seq);
         break;
       }
-      case FaultKind::kDropByte: {
+      case McuFaultKind::kDropByte: {
         bytes.erase(bytes.begin() + static_cast<long>(rng_() % bytes.size()));
         intact = false;
         std::lock_guard lock(mu_);
@@ -326,7 +326,7 @@ void MockMcu::EmitData(const McuEvent& event) {
         damaged(log_).push_back(f.seq);
         break;
       }
-      case FaultKind::kReset: {
+      case McuFaultKind::kReset: {
         bytes.resize(1 + rng_() % (bytes.size() - 1));
         out_.insert(out_.end(), bytes.begin(), bytes.end());
         Flush();

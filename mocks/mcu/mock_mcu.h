@@ -23,7 +23,7 @@
 
 namespace msmcal::sim {
 
-enum class FaultKind {
+enum class McuFaultKind {
   kFlipBit,   // one random bit of the frame is inverted (the frame is lost, CRC catches it)
   kDropByte,  // one random byte of the frame is not sent (the frame is lost)
   kReset,     // the frame is cut after a random number of bytes, then the MCU reboots
@@ -32,8 +32,8 @@ enum class FaultKind {
 
 // A fault applied to the `data_frame`-th data frame (field, clock edge or MARG; 0-based, counted
 // over the whole run across resets).
-struct Fault {
-  FaultKind kind = FaultKind::kFlipBit;
+struct McuFault {
+  McuFaultKind kind = McuFaultKind::kFlipBit;
   uint64_t data_frame = 0;
   int64_t stall_ms = -1;  // kStall only: < 0 means until Stop()
 };
@@ -47,7 +47,7 @@ struct MockMcuOptions {
   bool record_sent = true;      // keep every intact reading/edge sent, for tests
   hall_mcu::IdentifyInfo identify{1, 0, 0, hall_mcu::SensorType::kMlx90393, "msmcal mock MCU"};
   hall_mcu::SensorSettings settings;  // power-up sensor settings
-  std::vector<Fault> faults;
+  std::vector<McuFault> faults;
   uint64_t seed = 7;                // fault positions within frames
   std::function<int64_t()> now_ns;  // pacing clock; default: steady_clock
 
@@ -120,7 +120,7 @@ class MockMcu {
   int64_t next_heartbeat_us_ = 0;
   uint64_t data_frames_ = 0;
   size_t next_fault_ = 0;
-  std::vector<Fault> faults_;  // sorted by data_frame
+  std::vector<McuFault> faults_;  // sorted by data_frame
   std::vector<uint8_t> out_;   // pending bytes (batched in fast mode)
   hall_mcu::FrameDecoder commands_;
   std::mt19937_64 rng_;

@@ -1,7 +1,6 @@
 #pragma once
-// The demo rig's mock Hall MCUs (one per recording, on ptys). Kept apart from demo_rig.cc because
-// mocks/mcu/mock_mcu.h and mocks/generator/mock_server.h both declare msmcal::sim::FaultKind and
-// msmcal::sim::Fault and cannot be included in the same translation unit.
+// The demo rig's mock Hall MCUs (one per recording, on ptys), kept apart from demo_rig.cc so that
+// the pty mock's headers stay out of the generator/camera wiring.
 
 #include <memory>
 #include <string>

@@ -90,9 +90,9 @@ TEST(HallRecorder, StopsAtTheDurationLimitExactly) {
 
 TEST(HallRecorder, RestartsStreamingAfterAnMcuResetAndCountsLosses) {
   sim::MockMcuOptions mock_options;
-  mock_options.faults = {{sim::FaultKind::kFlipBit, 500},
-                         {sim::FaultKind::kReset, 3000},
-                         {sim::FaultKind::kDropByte, 4500}};
+  mock_options.faults = {{sim::McuFaultKind::kFlipBit, 500},
+                         {sim::McuFaultKind::kReset, 3000},
+                         {sim::McuFaultKind::kDropByte, 4500}};
   sim::MockMcu mock(mock_options, Synthetic(6));
   mock.Start();
   auto sensor = hall_mcu::OpenHallMcu(DriverOptions(mock.device_path()));

@@ -139,10 +139,10 @@ TEST(MockMcu, EveryInjectedLossIsCountedExactly) {
   MockMcuOptions options;
   options.seed = 99;
   // Data frames are readings and edges interleaved; the indices below hit both kinds.
-  for (uint64_t i = 37; i < 20000; i += 397) options.faults.push_back({FaultKind::kFlipBit, i});
-  for (uint64_t i = 101; i < 20000; i += 613) options.faults.push_back({FaultKind::kDropByte, i});
-  options.faults.push_back({FaultKind::kFlipBit, 19998});   // last frames: only the final status
-  options.faults.push_back({FaultKind::kDropByte, 19999});  // reveals these losses
+  for (uint64_t i = 37; i < 20000; i += 397) options.faults.push_back({McuFaultKind::kFlipBit, i});
+  for (uint64_t i = 101; i < 20000; i += 613) options.faults.push_back({McuFaultKind::kDropByte, i});
+  options.faults.push_back({McuFaultKind::kFlipBit, 19998});   // last frames: only the final status
+  options.faults.push_back({McuFaultKind::kDropByte, 19999});  // reveals these losses
   MockMcu mock(options, Synthetic(19.99));
   mock.Start();
   auto sensor = hall_mcu::OpenHallMcu(DriverOptions(mock.device_path()));
@@ -170,7 +170,7 @@ TEST(MockMcu, RandomAndConsecutiveDamageIsCountedExactly) {
   while (frames.size() < 400) frames.insert(rng() % 15000);
   for (uint64_t f = 7000; f < 7010; ++f) frames.insert(f);  // a burst of damaged frames
   for (uint64_t f : frames) {
-    options.faults.push_back({rng() % 2 ? FaultKind::kFlipBit : FaultKind::kDropByte, f});
+    options.faults.push_back({rng() % 2 ? McuFaultKind::kFlipBit : McuFaultKind::kDropByte, f});
   }
   MockMcu mock(options, Synthetic(15));
   mock.Start();
@@ -192,8 +192,8 @@ TEST(MockMcu, RandomAndConsecutiveDamageIsCountedExactly) {
 
 TEST(MockMcu, ResetMidStreamIsDetectedAndStreamingResumes) {
   MockMcuOptions options;
-  options.faults.push_back({FaultKind::kReset, 2500});
-  options.faults.push_back({FaultKind::kFlipBit, 4000});
+  options.faults.push_back({McuFaultKind::kReset, 2500});
+  options.faults.push_back({McuFaultKind::kFlipBit, 4000});
   MockMcu mock(options, Synthetic(6));
   mock.Start();
   auto sensor = hall_mcu::OpenHallMcu(DriverOptions(mock.device_path()));
@@ -228,7 +228,7 @@ TEST(MockMcu, ResetMidStreamIsDetectedAndStreamingResumes) {
 
 TEST(MockMcu, StallRaisesAStallErrorWithinTheDeadline) {
   MockMcuOptions options;
-  options.faults.push_back({FaultKind::kStall, 300, /*stall_ms=*/-1});
+  options.faults.push_back({McuFaultKind::kStall, 300, /*stall_ms=*/-1});
   MockMcu mock(options, Synthetic(5));
   mock.Start();
   auto sensor = hall_mcu::OpenHallMcu(
