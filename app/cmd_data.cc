@@ -21,7 +21,8 @@ namespace {
 
 namespace fs = std::filesystem;
 
-constexpr const char* kDefaultRoot = "sessions";
+// Not "sessions": run from a checkout, that would write into the source module of that name.
+constexpr const char* kDefaultRoot = "msmcal-sessions";
 
 std::string Num(double v) { return interchange::FormatDouble(v); }
 
