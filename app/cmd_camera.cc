@@ -28,35 +28,11 @@
 #include "mocks/camera/rig_scene_source.h"
 #include "mocks/rig/sim_options.h"
 #include "processing/calib/intrinsics.h"
+#include "sessions/interchange/interchange_io.h"
 
 namespace {
 
 using msmcal::camera::CameraConfig;
-
-// Shortest text that reads back to the same double.
-std::string Num(double value) {
-  char buffer[64];
-  const auto result = std::to_chars(buffer, buffer + sizeof(buffer), value);
-  return std::string(buffer, result.ptr);
-}
-
-// camera.yaml in the interchange format (docs: interchange-format.md), written atomically.
-void WriteCameraYaml(const std::filesystem::path& file, const msmcal::geometry::CameraModel& c) {
-  std::string text =
-      "image_size: [" + std::to_string(c.width) + ", " + std::to_string(c.height) + "]\n";
-  text += "K: [[" + Num(c.fx) + ", 0, " + Num(c.cx) + "], [0, " + Num(c.fy) + ", " + Num(c.cy) +
-          "], [0, 0, 1]]\n";
-  text += "distortion: [" + Num(c.distortion[0]) + ", " + Num(c.distortion[1]) + ", " +
-          Num(c.distortion[2]) + ", " + Num(c.distortion[3]) + ", " + Num(c.distortion[4]) + "]\n";
-  if (file.has_parent_path()) std::filesystem::create_directories(file.parent_path());
-  const std::filesystem::path tmp = file.string() + ".tmp";
-  {
-    std::ofstream out(tmp);
-    out << text;
-    if (!out.flush()) throw std::runtime_error(tmp.string() + ": cannot write");
-  }
-  std::filesystem::rename(tmp, file);
-}
 
 struct GrabArgs {
   std::string device;
@@ -190,7 +166,7 @@ void RunCalibrate(const CalibrateArgs& args) {
   std::printf("fx %.3f fy %.3f cx %.3f cy %.3f; k1 %.5f k2 %.5f p1 %.5f p2 %.5f k3 %.5f\n", c.fx,
               c.fy, c.cx, c.cy, c.distortion[0], c.distortion[1], c.distortion[2], c.distortion[3],
               c.distortion[4]);
-  WriteCameraYaml(args.out, c);
+  msmcal::interchange::WriteCameraYaml(args.out, c);
   std::printf("wrote %s\n", args.out.c_str());
 }
 

@@ -7,6 +7,8 @@
 #include <cstring>
 #include <stdexcept>
 
+#include "common/text_io.h"
+
 namespace msmcal::acquisition {
 namespace {
 
@@ -20,11 +22,7 @@ std::FILE* OpenOrThrow(const std::filesystem::path& path, const char* header) {
   return f;
 }
 
-void AppendDouble(std::string* line, double v) {
-  char buf[64];
-  auto [ptr, ec] = std::to_chars(buf, buf + sizeof(buf), v);
-  line->append(buf, ptr);
-}
+void AppendDouble(std::string* line, double v) { common::AppendShortestDouble(line, v); }
 
 void WriteOrThrow(std::FILE* f, const std::string& text, const std::filesystem::path& path) {
   if (std::fwrite(text.data(), 1, text.size(), f) != text.size() || std::fflush(f) != 0) {

@@ -10,6 +10,7 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "common/text_io.h"
 #include "processing/geometry/rigid3.h"
 
 namespace msmcal::sim {
@@ -23,12 +24,7 @@ std::string Fmt(double v) {
   return os.str();
 }
 
-// Shortest text that reads back to the same double.
-std::string Exact(double v) {
-  char buf[64];
-  const auto r = std::to_chars(buf, buf + sizeof(buf), v);
-  return std::string(buf, r.ptr);
-}
+std::string Exact(double v) { return common::ShortestDouble(v); }
 
 Eigen::Vector3d Gaussian3(std::mt19937_64& rng, double sigma) {
   std::normal_distribution<double> n(0.0, sigma);

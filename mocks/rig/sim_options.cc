@@ -11,6 +11,8 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "common/text_io.h"
+
 namespace msmcal::sim {
 namespace {
 
@@ -215,17 +217,7 @@ class Parser {
   std::vector<Frame> stack_;
 };
 
-// Shortest round-trip text, with a '.' before any exponent so that YAML 1.1 readers (PyYAML)
-// also read it as a float ("4e-04" -> "4.0e-04").
-std::string Num(double x) {
-  if (x == 0) return "0";
-  char buf[64];
-  const auto r = std::to_chars(buf, buf + sizeof(buf), x);
-  std::string s(buf, r.ptr);
-  const size_t e = s.find('e');
-  if (e != std::string::npos && s.find('.') == std::string::npos) s.insert(e, ".0");
-  return s;
-}
+std::string Num(double x) { return common::YamlDouble(x); }
 
 // Emits block-style YAML with flow lists; numbers in shortest round-trip form.
 class Emitter {

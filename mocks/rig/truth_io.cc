@@ -10,6 +10,7 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "common/text_io.h"
 #include "mocks/rig/rig_simulator.h"
 #include "processing/geometry/mirror_frame.h"
 
@@ -19,15 +20,8 @@ namespace {
 namespace fs = std::filesystem;
 constexpr double kRadToDeg = 180.0 / std::numbers::pi;
 
-std::string D(double x) { return ShortestDouble(x); }
-
-// YAML numbers: a '.' before any exponent so that YAML 1.1 readers (PyYAML) read a float.
-std::string Y(double x) {
-  std::string s = ShortestDouble(x);
-  const size_t e = s.find('e');
-  if (e != std::string::npos && s.find('.') == std::string::npos) s.insert(e, ".0");
-  return s;
-}
+std::string D(double x) { return common::ShortestDouble(x); }
+std::string Y(double x) { return common::YamlDouble(x); }
 
 std::string List(const Eigen::VectorXd& v) {
   std::string s = "[";
@@ -146,26 +140,6 @@ constexpr const char* kTrajectoryHeader = "t_s,alpha_deg,beta_deg,trans_mm";
 
 }  // namespace
 
-std::string ShortestDouble(double value) {
-  if (value == 0) return "0";  // also folds -0
-  char buf[64];
-  const auto r = std::to_chars(buf, buf + sizeof(buf), value);
-  return std::string(buf, r.ptr);
-}
-
-void WriteTextFile(const fs::path& file, const std::string& contents) {
-  if (file.has_parent_path()) fs::create_directories(file.parent_path());
-  const fs::path tmp = file.string() + ".tmp";
-  {
-    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-    if (!out) throw std::runtime_error(tmp.string() + ": cannot create");
-    out << contents;
-    out.flush();
-    if (!out) throw std::runtime_error(tmp.string() + ": write failed");
-  }
-  fs::rename(tmp, file);
-}
-
 SimTruth MakeTruth(const RigSimulator& sim, double trajectory_rate_hz) {
   SimTruth t;
   t.seed = sim.options().seed;
@@ -229,14 +203,14 @@ SimTruth MakeTruth(const RigSimulator& sim, double trajectory_rate_hz) {
 
 void WriteTruth(const fs::path& dir, const SimTruth& t) {
   const fs::path truth = dir / "truth";
-  WriteTextFile(truth / "sim_config.yaml", t.sim_config_yaml);
+  common::WriteFileAtomically(truth / "sim_config.yaml", t.sim_config_yaml);
   {
     std::string s = std::string(kBeamsHeader) + "\n";
     for (const auto& b : t.beams) {
       s += std::to_string(b.beam) + "," + D(b.p.x()) + "," + D(b.p.y()) + "," + D(b.p.z()) + "," +
            D(b.v.x()) + "," + D(b.v.y()) + "," + D(b.v.z()) + "\n";
     }
-    WriteTextFile(truth / "beams.csv", s);
+    common::WriteFileAtomically(truth / "beams.csv", s);
   }
   {
     std::string s = std::string(kPlanesHeader) + "\n";
@@ -247,7 +221,7 @@ void WriteTruth(const fs::path& dir, const SimTruth& t) {
            D(p.trans_mm) + "," + D(p.sigma_alpha_deg) + "," + D(p.sigma_beta_deg) + "," +
            D(p.sigma_trans_mm) + "\n";
     }
-    WriteTextFile(truth / "mirror_planes.csv", s);
+    common::WriteFileAtomically(truth / "mirror_planes.csv", s);
   }
   {
     std::string s = "# Mirror home frame {0} in {W} (ground truth). R row-major, lengths mm.\n";
@@ -261,7 +235,7 @@ void WriteTruth(const fs::path& dir, const SimTruth& t) {
          "  # light-path plane normals, outer beams\n";
     s += "spanning_angle_mean_deg: " + Y(t.spanning_angle_mean_deg) +
          "  # mean over scan triggers\n";
-    WriteTextFile(truth / "mirror_frame.yaml", s);
+    common::WriteFileAtomically(truth / "mirror_frame.yaml", s);
   }
   {
     std::string s = "# Camera poses (ground truth): cam_from_board, R row-major, t mm.\n";
@@ -269,7 +243,7 @@ void WriteTruth(const fs::path& dir, const SimTruth& t) {
     s += "c1_from_sliding:\n";
     for (const auto& v : t.c1_from_sliding) s += "  - " + TransformYaml(v) + "\n";
     s += "c2_from_world: " + TransformYaml(t.c2_from_world) + "\n";
-    WriteTextFile(truth / "views.yaml", s);
+    common::WriteFileAtomically(truth / "views.yaml", s);
   }
   {
     std::string s = std::string(kDotsHeader) + "\n";
@@ -277,7 +251,7 @@ void WriteTruth(const fs::path& dir, const SimTruth& t) {
       s += d.file + "," + std::to_string(d.beam) + "," + std::to_string(d.j) + "," + D(d.u_px) +
            "," + D(d.v_px) + "\n";
     }
-    WriteTextFile(truth / "dots.csv", s);
+    common::WriteFileAtomically(truth / "dots.csv", s);
   }
   {
     const auto& h = t.hall;
@@ -294,14 +268,14 @@ void WriteTruth(const fs::path& dir, const SimTruth& t) {
     s += "background_start_s: " + Y(h.background_start_s) + "\n";
     s += "actual_start_s: " + Y(h.actual_start_s) + "\n";
     s += "pattern_period_s: " + Y(h.pattern_period_s) + "\n";
-    WriteTextFile(truth / "hall.yaml", s);
+    common::WriteFileAtomically(truth / "hall.yaml", s);
   }
   {
     std::string s = std::string(kTrajectoryHeader) + "\n";
     for (const auto& p : t.pose_trajectory) {
       s += D(p.t_s) + "," + D(p.alpha_deg) + "," + D(p.beta_deg) + "," + D(p.trans_mm) + "\n";
     }
-    WriteTextFile(truth / "pose_trajectory.csv", s);
+    common::WriteFileAtomically(truth / "pose_trajectory.csv", s);
   }
 }
 

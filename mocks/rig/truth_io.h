@@ -76,9 +76,5 @@ void WriteTruth(const std::filesystem::path& dir, const SimTruth& truth);
 // Reads DIR/truth/...; throws std::runtime_error naming the file, line and field on bad input.
 SimTruth ReadTruth(const std::filesystem::path& dir);
 
-// Shortest round-trip decimal text of a double.
-std::string ShortestDouble(double value);
-// Writes `contents` to `file` through a temporary in the same folder and a rename.
-void WriteTextFile(const std::filesystem::path& file, const std::string& contents);
 
 }  // namespace msmcal::sim

@@ -16,6 +16,8 @@
 #include <sstream>
 #include <string_view>
 
+#include "common/text_io.h"
+
 namespace msmcal::interchange {
 namespace {
 
@@ -85,11 +87,7 @@ bool ParseInt(std::string_view s, Int* out) {
   return ec == std::errc() && ptr == end;
 }
 
-void AppendDouble(std::string* out, double v) {
-  char buf[64];
-  auto [ptr, ec] = std::to_chars(buf, buf + sizeof(buf), v);
-  out->append(buf, ptr);
-}
+void AppendDouble(std::string* out, double v) { common::AppendShortestDouble(out, v); }
 
 template <typename Int>
 void AppendInt(std::string* out, Int v) {
@@ -441,16 +439,7 @@ class YamlReader {
   std::string display_;
 };
 
-// YAML number text: the shortest round-trip form, with a ".0" mantissa before an exponent so
-// that YAML 1.1 readers (PyYAML) also see a float, and YAML's spellings of inf and nan.
-std::string YamlDouble(double v) {
-  if (std::isnan(v)) return ".nan";
-  if (std::isinf(v)) return v > 0 ? ".inf" : "-.inf";
-  std::string s = FormatDouble(v);
-  const size_t e = s.find('e');
-  if (e != std::string::npos && s.find('.') == std::string::npos) s.insert(e, ".0");
-  return s;
-}
+std::string YamlDouble(double v) { return common::YamlDouble(v); }
 
 // A plain scalar where that is unambiguous, else a double-quoted string.
 std::string YamlString(const std::string& s) {
@@ -753,13 +742,6 @@ void CheckImage(const fs::path& dir, const std::string& file, const std::string&
   }
 }
 
-struct FdCloser {
-  int fd;
-  ~FdCloser() {
-    if (fd >= 0) ::close(fd);
-  }
-};
-
 }  // namespace
 
 // ------------------------------------------------------------------------------ public functions
@@ -771,40 +753,10 @@ std::string FormatDouble(double value) {
 }
 
 void WriteFileAtomically(const std::filesystem::path& file, const std::string& contents) {
-  static std::atomic<uint64_t> counter{0};
-  const fs::path parent = file.has_parent_path() ? file.parent_path() : fs::path(".");
-  std::error_code ec;
-  fs::create_directories(parent, ec);
-  if (ec) Fail(file.string(), 0, "cannot create folder " + parent.string() + ": " + ec.message());
-  const fs::path tmp =
-      parent / ("." + file.filename().string() + ".tmp-" + std::to_string(::getpid()) + "-" +
-                std::to_string(counter.fetch_add(1)));
-  auto fail_errno = [&](const char* what) {
-    const int err = errno;
-    ::unlink(tmp.c_str());
-    Fail(file.string(), 0, std::string(what) + ": " + std::strerror(err));
-  };
-  {
-    FdCloser f{::open(tmp.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0644)};
-    if (f.fd < 0) fail_errno("cannot create temporary file");
-    size_t done = 0;
-    while (done < contents.size()) {
-      const ssize_t n = ::write(f.fd, contents.data() + done, contents.size() - done);
-      if (n < 0) {
-        if (errno == EINTR) continue;
-        fail_errno("write failed");
-      }
-      done += static_cast<size_t>(n);
-    }
-    if (::fsync(f.fd) != 0) fail_errno("fsync failed");
-    const int fd = f.fd;
-    f.fd = -1;
-    if (::close(fd) != 0) fail_errno("close failed");
-  }
-  if (::rename(tmp.c_str(), file.c_str()) != 0) fail_errno("rename failed");
-  FdCloser d{::open(parent.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC)};
-  if (d.fd < 0 || ::fsync(d.fd) != 0) {
-    Fail(file.string(), 0, std::string("fsync of folder failed: ") + std::strerror(errno));
+  try {
+    common::WriteFileAtomically(file, contents);
+  } catch (const std::runtime_error& e) {
+    throw InterchangeError(e.what());
   }
 }
 

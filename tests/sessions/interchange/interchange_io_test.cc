@@ -1,4 +1,5 @@
 #include "sessions/interchange/interchange_io.h"
+#include "tests/testing/test_files.h"
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
@@ -21,33 +22,14 @@ namespace fs = std::filesystem;
 using ::testing::HasSubstr;
 
 // A fresh folder per test, removed afterwards.
-class TempDir {
+// Per-test folders named msmcal_ix_<suite>_<test>_<pid>.
+class TempDir : public msmcal::testing::TempDir {
  public:
-  TempDir() {
-    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    path_ = fs::temp_directory_path() / ("msmcal_ix_" + std::string(info->test_suite_name()) + "_" +
-                                         info->name() + "_" + std::to_string(::getpid()));
-    fs::remove_all(path_);
-    fs::create_directories(path_);
-  }
-  ~TempDir() { fs::remove_all(path_); }
-  const fs::path& path() const { return path_; }
-
- private:
-  fs::path path_;
+  TempDir() : msmcal::testing::TempDir("msmcal_ix") {}
 };
 
-std::string Slurp(const fs::path& p) {
-  std::ifstream in(p, std::ios::binary);
-  std::ostringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
-
-void Spit(const fs::path& p, const std::string& text) {
-  fs::create_directories(p.parent_path());
-  std::ofstream(p, std::ios::binary) << text;
-}
+using msmcal::testing::Slurp;
+using msmcal::testing::Spit;
 
 // Replaces the first occurrence of `from` in file `p` (fails the test if absent).
 void Edit(const fs::path& p, const std::string& from, const std::string& to) {

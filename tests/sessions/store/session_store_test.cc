@@ -17,6 +17,7 @@
 #include <thread>
 
 #include "sessions/interchange/interchange_io.h"
+#include "tests/testing/test_files.h"
 
 namespace msmcal::store {
 namespace {
@@ -24,20 +25,10 @@ namespace {
 namespace fs = std::filesystem;
 using ::testing::HasSubstr;
 
-class TempDir {
+// Per-test folders named msmcal_store_<suite>_<test>_<pid>.
+class TempDir : public msmcal::testing::TempDir {
  public:
-  TempDir() {
-    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    path_ = fs::temp_directory_path() / ("msmcal_store_" + std::string(info->test_suite_name()) +
-                                         "_" + info->name() + "_" + std::to_string(::getpid()));
-    fs::remove_all(path_);
-    fs::create_directories(path_);
-  }
-  ~TempDir() { fs::remove_all(path_); }
-  const fs::path& path() const { return path_; }
-
- private:
-  fs::path path_;
+  TempDir() : msmcal::testing::TempDir("msmcal_store") {}
 };
 
 bool Same(double a, double b) { return std::bit_cast<uint64_t>(a) == std::bit_cast<uint64_t>(b); }

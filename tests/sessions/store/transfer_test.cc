@@ -11,6 +11,7 @@
 
 #include "sessions/interchange/interchange_io.h"
 #include "sessions/store/catalogue.h"
+#include "tests/testing/test_files.h"
 
 namespace msmcal::store {
 namespace {
@@ -18,33 +19,14 @@ namespace {
 namespace fs = std::filesystem;
 using ::testing::HasSubstr;
 
-class TempDir {
+// Per-test folders named msmcal_xfer_<suite>_<test>_<pid>.
+class TempDir : public msmcal::testing::TempDir {
  public:
-  TempDir() {
-    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    path_ = fs::temp_directory_path() / ("msmcal_xfer_" + std::string(info->test_suite_name()) +
-                                         "_" + info->name() + "_" + std::to_string(::getpid()));
-    fs::remove_all(path_);
-    fs::create_directories(path_);
-  }
-  ~TempDir() { fs::remove_all(path_); }
-  const fs::path& path() const { return path_; }
-
- private:
-  fs::path path_;
+  TempDir() : msmcal::testing::TempDir("msmcal_xfer") {}
 };
 
-std::string Slurp(const fs::path& p) {
-  std::ifstream in(p, std::ios::binary);
-  std::ostringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
-
-void Spit(const fs::path& p, const std::string& text) {
-  fs::create_directories(p.parent_path());
-  std::ofstream(p, std::ios::binary) << text;
-}
+using msmcal::testing::Slurp;
+using msmcal::testing::Spit;
 
 std::vector<std::string> FilesUnder(const fs::path& dir) {
   std::vector<std::string> out;
