@@ -5,7 +5,10 @@
 // (`msmcal solve`), calibrates the Hall sensor (`msmcal hall calibrate`, `msmcal hall predict`) in
 // child processes of this same executable, and prints the Table I/II-style report compared with
 // the simulator's truth; the HTML report goes to DIR/report.html.
-#include <spdlog/spdlog.h>
+// `--guided`: the operator at the rig is prompted on this terminal for every set-up (the guided
+// mode, docs/guided.md): the answers go to a ConsoleOperator in front of the simulated world;
+// live gate figures are printed and annotated previews written to DIR/previews.
+#include <unistd.h>
 
 #include <CLI/CLI.hpp>
 #include <chrono>
@@ -18,11 +21,12 @@
 #include <vector>
 
 #include "app/command_registry.h"
+#include "app/session_flow.h"
 #include "mocks/rig/sim_options.h"
-#include "mocks/rig/truth_io.h"
 #include "sessions/interchange/interchange_io.h"
-#include "sessions/orchestrator/demo_rig.h"
+#include "sessions/orchestrator/console_operator.h"
 #include "sessions/orchestrator/orchestrator.h"
+#include "sessions/orchestrator/preview.h"
 #include "sessions/orchestrator/report.h"
 #include "sessions/store/session_store.h"
 #include "sessions/store/transfer.h"
@@ -38,25 +42,46 @@ struct DemoArgs {
   int64_t seed = -1;
   std::string camera_address = "127.0.0.1";
   std::string store;  // session store folder to import the finished session into (optional)
+  bool guided = false;
 };
 
-std::string Quote(const std::string& s) {
-  std::string q = "'";
-  for (char c : s) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
-  return q + "'";
-}
-
-// Runs this executable with `args`; returns true on exit status 0.
-bool RunSelf(const std::string& args, std::vector<std::string>* notes) {
-  const std::string exe = fs::read_symlink("/proc/self/exe").string();
-  const std::string cmd = Quote(exe) + " " + args;
-  std::printf("\n$ msmcal %s\n", args.c_str());
-  std::fflush(stdout);
-  const int rc = std::system(cmd.c_str());
-  const bool ok = rc == 0;
-  notes->push_back("msmcal " + args +
-                   (ok ? ": ok" : ": FAILED (status " + std::to_string(rc) + ")"));
-  return ok;
+// --guided: a ConsoleOperator on stdin/stdout in front of the simulated world (with the
+// simulator's sliding-plate poses as hints), live gate figures and previews of accepted frames.
+void AddGuidedMode(DemoAcquisitionOptions& acq) {
+  const sim::Step1Options s1 = acq.sim.step1;
+  acq.make_operator = [s1](orchestrator::RigOperator& world, const dataset::Recording& plan) {
+    orchestrator::ConsoleOperatorOptions co;
+    co.input_fd = STDIN_FILENO;
+    co.output_fd = STDOUT_FILENO;
+    for (int l = 0; l < s1.poses; ++l) {
+      const double mm = s1.nearest_mm +
+                        (s1.poses > 1 ? l * (s1.farthest_mm - s1.nearest_mm) / (s1.poses - 1) : 0);
+      char hint[160];
+      std::snprintf(hint, sizeof(hint),
+                    "about %.0f mm from the mirror position towards the source, tilted %+.0f deg",
+                    mm, (l % 2 == 0 ? 1 : -1) * s1.tilt_deg);
+      co.pose_hints.push_back(hint);
+    }
+    return std::make_unique<orchestrator::ConsoleOperator>(plan, co, &world);
+  };
+  const dataset::BoardSpec world{acq.sim.world_board.cols, acq.sim.world_board.rows,
+                                 acq.sim.world_board.square_mm};
+  const dataset::BoardSpec sliding{acq.sim.sliding_board.cols, acq.sim.sliding_board.rows,
+                                   acq.sim.sliding_board.square_mm};
+  acq.adjust_options = [world, sliding](orchestrator::OrchestratorOptions& o) {
+    auto print = [](const std::string& line) {
+      std::printf("%s\n", line.c_str());
+      std::fflush(stdout);
+    };
+    auto live = orchestrator::MakeLiveFigures(print);
+    auto previews = orchestrator::MakePreviewWriter(
+        o.out_dir, world, sliding, [print](const std::string& w) { print("warning: " + w); });
+    o.on_frame = [before = o.on_frame, live, previews](const orchestrator::FrameReport& r) {
+      if (before) before(r);
+      live(r);
+      previews(r);
+    };
+  };
 }
 
 void RunDemo(const DemoArgs& args) {
@@ -64,39 +89,32 @@ void RunDemo(const DemoArgs& args) {
   auto elapsed = [&] {
     return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   };
-  orchestrator::DemoRigOptions ro;
-  ro.sim = args.config.empty() ? sim::SimOptions{} : sim::LoadSimOptions(args.config);
-  if (args.seed >= 0) ro.sim.seed = static_cast<uint64_t>(args.seed);
-  ro.camera_address = args.camera_address;
+  DemoAcquisitionOptions acq;
+  acq.sim = args.config.empty() ? sim::SimOptions{} : sim::LoadSimOptions(args.config);
+  if (args.seed >= 0) acq.sim.seed = static_cast<uint64_t>(args.seed);
+  acq.camera_address = args.camera_address;
   const fs::path out = fs::absolute(args.out);
   if (fs::exists(out) && !fs::is_empty(out))
-    throw std::runtime_error(out.string() + ": exists and is not empty (choose another --out)");
+    throw std::runtime_error(out.string() +
+                             ": exists and is not empty (choose another --out, or continue an "
+                             "interrupted session with `msmcal resume " +
+                             out.string() + "`)");
 
   std::printf(
       "msmcal demo: starting the mock rig (2 generators on loopback SCPI, GigE Vision "
       "camera on %s, Hall MCU on a pty)...\n",
-      ro.camera_address.c_str());
+      acq.camera_address.c_str());
   std::fflush(stdout);
-  orchestrator::DemoRig rig(ro);
-  for (const auto& w : rig.sim().warnings()) spdlog::warn("simulator: {}", w);
-  std::printf(
-      "  generators on ports %d and %d, camera %dx%d; %zu step-1 and %zu step-2 frames, "
-      "%zu triggers\n",
-      rig.generators_port(1), rig.generators_port(2), rig.sim().camera().width,
-      rig.sim().camera().height, rig.sim().step1_frames().size(), rig.sim().step2_frames().size(),
-      rig.sim().triggers().size());
-
   std::vector<std::string> notes;
-  const orchestrator::OrchestratorOptions options = rig.MakeOrchestratorOptions(out);
-  const orchestrator::SessionResult session =
-      orchestrator::RunSession(options, rig.Plan(), rig.world(), [&](const std::string& line) {
-        std::printf("[%6.1f s] %s\n", elapsed(), line.c_str());
-        std::fflush(stdout);
-        notes.push_back(line);
-      });
+  acq.progress = [&](const std::string& line) {
+    std::printf("[%6.1f s] %s\n", elapsed(), line.c_str());
+    std::fflush(stdout);
+    notes.push_back(line);
+  };
+  if (args.guided) AddGuidedMode(acq);
+  const orchestrator::SessionResult session = RunDemoAcquisition(out, acq);
   size_t rejected = 0;
   for (const auto& f : session.frames) rejected += f.accepted ? 0 : 1;
-  sim::WriteTruth(out, sim::MakeTruth(rig.sim()));
   std::printf(
       "[%6.1f s] acquisition done: %zu frames (%zu rejected), Hall %llu + %llu readings; "
       "truth written to %s/truth\n",
@@ -104,23 +122,11 @@ void RunDemo(const DemoArgs& args) {
       static_cast<unsigned long long>(session.background_readings),
       static_cast<unsigned long long>(session.actual_readings), out.string().c_str());
 
-  const std::string dir = Quote(out.string());
-  const bool solved = RunSelf("solve " + dir + " --threads 2", &notes);
-  bool hall_ok = false;
-  if (solved) {
-    hall_ok = RunSelf("hall calibrate " + dir, &notes);
-    if (hall_ok)
-      RunSelf("hall predict " + Quote((out / "results" / "hall_model.yaml").string()) + " " +
-                  Quote((out / "hall" / "actual.csv").string()) + " " +
-                  Quote((out / "results" / "hall_poses.csv").string()),
-              &notes);
-  } else {
-    std::printf("SKIPPED: Hall calibration (needs the solver's mirror poses)\n");
-  }
+  const FinishResult finished = FinishSession(out, FinishOptions{}, &notes);
   if (!args.store.empty()) {
     store::ImportOptions io;
     io.rig_id = "demo-rig (mock instruments)";
-    io.mirror_id = "simulated MSM, seed " + std::to_string(ro.sim.seed);
+    io.mirror_id = "simulated MSM, seed " + std::to_string(acq.sim.seed);
     io.note = "msmcal demo";
     const store::SystemClock clock;
     auto stored = store::ImportInterchange(out, args.store, clock, io);
@@ -132,7 +138,7 @@ void RunDemo(const DemoArgs& args) {
   interchange::WriteFileAtomically(out / "report.html", report.html);
   std::printf("\n%s", report.text.c_str());
   std::printf("\nreport: %s   (total %.1f s)\n", (out / "report.html").string().c_str(), elapsed());
-  if (!solved || !hall_ok) throw CLI::RuntimeError(1);
+  if (!finished.ok()) throw CLI::RuntimeError(1);
 }
 
 void AddDemoCommands(CLI::App& app) {
@@ -147,6 +153,9 @@ void AddDemoCommands(CLI::App& app) {
   demo->add_option("--store", args->store,
                    "Also import the finished session (with results/) into this new session-store "
                    "folder");
+  demo->add_flag("--guided", args->guided,
+                 "Prompt for every rig set-up on this terminal (Enter / r / q), print live gate "
+                 "figures and write annotated previews to DIR/previews");
   demo->callback([args] { RunDemo(*args); });
 }
 

@@ -1,6 +1,7 @@
 #include "sessions/orchestrator/demo_rig.h"
 
 #include <stdexcept>
+#include <utility>
 
 #include "mocks/generator/mock_server.h"
 
@@ -19,8 +20,12 @@ DemoRig::DemoRig(const DemoRigOptions& options) : options_(options) {
   if (std::string e = options.Validate(); !e.empty()) throw std::invalid_argument(e);
   sim_ = std::make_shared<const sim::RigSimulator>(options.sim);
   mcus_ = std::make_unique<DemoMcus>();
-  world_ = std::make_unique<SimulatedWorld>(
-      sim_, [this](HallRun run) { return mcus_->Start(options_.sim, run); });
+  world_ = std::make_unique<SimulatedWorld>(sim_, [this](HallRun run) {
+    // The background MCU started for the rig check (MakeOrchestratorOptions) is handed out once.
+    if (run == HallRun::kBackground && !background_device_.empty())
+      return std::exchange(background_device_, std::string());
+    return mcus_->Start(options_.sim, run);
+  });
   generators_ = std::make_unique<sim::MockGeneratorPair>(sim::GeneratorPairOptions{});
   sim::MockGvCameraOptions cam;
   cam.address = options.camera_address;
@@ -77,6 +82,12 @@ OrchestratorOptions DemoRig::MakeOrchestratorOptions(const std::filesystem::path
   o.camera_address = options_.camera_address;
   o.camera_frame_rate_hz = options_.camera_frame_rate_hz;
   o.mcu.stall_timeout_ms = 2000;
+  // The rig check identifies the background recording's MCU, which the operator action hands
+  // out again when the background recording is due (so the guided operator is told to set it
+  // up at the right time).
+  if (background_device_.empty())
+    background_device_ = mcus_->Start(options_.sim, HallRun::kBackground);
+  o.mcu.device = background_device_;
   o.background_seconds = 0;  // the mock MCU ends with the simulator's recording
   o.mcu_rate_hz = static_cast<uint16_t>(options_.sim.hall.sample_rate_hz);
   return o;

@@ -60,6 +60,7 @@ class DemoRig {
   std::unique_ptr<sim::MockGeneratorPair> generators_;
   std::unique_ptr<sim::MockGvCamera> camera_;
   std::unique_ptr<DemoMcus> mcus_;
+  mutable std::string background_device_;  // started by MakeOrchestratorOptions, handed out once
 };
 
 }  // namespace msmcal::orchestrator

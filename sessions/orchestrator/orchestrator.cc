@@ -4,8 +4,10 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <map>
 #include <memory>
 #include <mutex>
+#include <nlohmann/json.hpp>
 #include <opencv2/core.hpp>
 #include <stdexcept>
 
@@ -17,6 +19,7 @@
 #include "drivers/generator/safe_state.h"
 #include "processing/signal/rig_signals.h"
 #include "sessions/interchange/interchange_io.h"
+#include "sessions/store/session_store.h"
 
 namespace msmcal::orchestrator {
 
@@ -58,15 +61,26 @@ std::string JoinLines(const std::vector<std::string>& lines) {
 // from the safe-state watcher thread.
 class SessionLog {
  public:
-  SessionLog(const fs::path& file, ProgressFn progress)
-      : progress_(std::move(progress)), start_(std::chrono::steady_clock::now()) {
+  SessionLog(const fs::path& file, ProgressFn progress, store::SessionStore* journal)
+      : progress_(std::move(progress)),
+        journal_(journal),
+        start_(std::chrono::steady_clock::now()) {
     file_ = std::fopen(file.string().c_str(), "a");
     if (!file_) throw std::runtime_error(file.string() + ": cannot open the session log");
   }
   ~SessionLog() {
     if (file_) std::fclose(file_);
   }
-  void Line(const std::string& text) {
+  void Line(const std::string& text, const char* kind = "info") {
+    if (journal_) {
+      try {
+        journal_->AddEvent(kind, text);
+      } catch (const std::exception& e) {
+        // The text file below still has it; say so once there.
+        std::lock_guard<std::mutex> lock(mu_);
+        std::fprintf(file_, "journal: event not stored: %s\n", e.what());
+      }
+    }
     {
       std::lock_guard<std::mutex> lock(mu_);
       const double t =
@@ -82,7 +96,36 @@ class SessionLog {
   std::mutex mu_;
   std::FILE* file_ = nullptr;
   ProgressFn progress_;
+  store::SessionStore* journal_;
   std::chrono::steady_clock::time_point start_;
+};
+
+// generators_transcript.txt: one line per SCPI exchange ("unit1 > *RST", "unit1 < 1"), without
+// times (so that a replay's transcript compares equal). Thread-safe (the safe-state watcher
+// talks to the generators too).
+class TranscriptFile {
+ public:
+  explicit TranscriptFile(const fs::path& file) {
+    file_ = std::fopen(file.string().c_str(), "a");
+    if (!file_) throw std::runtime_error(file.string() + ": cannot open the SCPI transcript");
+  }
+  ~TranscriptFile() { std::fclose(file_); }
+  scpi::TranscriptSink Sink(const std::string& unit) {
+    return [this, unit](const scpi::TranscriptEntry& e) {
+      std::lock_guard<std::mutex> lock(mu_);
+      std::fprintf(file_, "%s %c %s\n", unit.c_str(), e.to_instrument ? '>' : '<', e.text.c_str());
+      std::fflush(file_);
+    };
+  }
+  void Comment(const std::string& text) {
+    std::lock_guard<std::mutex> lock(mu_);
+    std::fprintf(file_, "# %s\n", text.c_str());
+    std::fflush(file_);
+  }
+
+ private:
+  std::mutex mu_;
+  std::FILE* file_ = nullptr;
 };
 
 cv::Mat FrameToMat(const camera::Frame& frame) {
@@ -117,19 +160,30 @@ struct Instruments {
 };
 
 RigCheckResult CheckRig(const OrchestratorOptions& options, const dataset::Recording* plan,
-                        const std::string& mcu_device, Instruments* inst) {
+                        const std::string& mcu_device, Instruments* inst,
+                        TranscriptFile* transcript = nullptr) {
   RigCheckResult r;
   // Generators: identity (on open), reference lock, signal design within limits.
   try {
-    inst->master = gen::OpenKeysight33500(options.generators.unit1);
-    r.found.push_back(options.generators.unit1.name + ": " + inst->master->Identify().model);
+    inst->master = gen::OpenKeysight33500(options.generators.unit1,
+                                          transcript ? transcript->Sink("unit1") : nullptr);
+    const scpi::Identity id = inst->master->Identify();
+    r.found.push_back(options.generators.unit1.name + ": " + id.model);
+    r.instruments.emplace_back(
+        options.generators.unit1.name,
+        id.manufacturer + " " + id.model + " " + id.serial + " " + id.firmware);
   } catch (const std::exception& e) {
     r.problems.push_back("generator 1 (" + options.generators.unit1.link.host + ":" +
                          std::to_string(options.generators.unit1.link.port) + "): " + e.what());
   }
   try {
-    inst->slave = gen::OpenKeysight33500(options.generators.unit2);
-    r.found.push_back(options.generators.unit2.name + ": " + inst->slave->Identify().model);
+    inst->slave = gen::OpenKeysight33500(options.generators.unit2,
+                                         transcript ? transcript->Sink("unit2") : nullptr);
+    const scpi::Identity id = inst->slave->Identify();
+    r.found.push_back(options.generators.unit2.name + ": " + id.model);
+    r.instruments.emplace_back(
+        options.generators.unit2.name,
+        id.manufacturer + " " + id.model + " " + id.serial + " " + id.firmware);
   } catch (const std::exception& e) {
     r.problems.push_back("generator 2 (" + options.generators.unit2.link.host + ":" +
                          std::to_string(options.generators.unit2.link.port) + "): " + e.what());
@@ -168,6 +222,9 @@ RigCheckResult CheckRig(const OrchestratorOptions& options, const dataset::Recor
     const camera::CameraInfo info = inst->cam->Info();
     r.found.push_back("camera " + info.vendor + " " + info.model + " " + info.serial + " " +
                       std::to_string(info.sensor_width) + "x" + std::to_string(info.sensor_height));
+    r.instruments.emplace_back("camera", info.vendor + " " + info.model + " " + info.serial + " " +
+                                             std::to_string(info.sensor_width) + "x" +
+                                             std::to_string(info.sensor_height));
     if (plan &&
         (info.sensor_width != plan->camera.width || info.sensor_height != plan->camera.height)) {
       r.problems.push_back("camera sensor is " + std::to_string(info.sensor_width) + "x" +
@@ -200,6 +257,7 @@ RigCheckResult CheckRig(const OrchestratorOptions& options, const dataset::Recor
       r.problems.push_back("Hall MCU " + link.device + ": no status: " + s.message);
     } else {
       r.found.push_back("Hall MCU " + link.device + ": " + dev.ToString());
+      r.instruments.emplace_back("hall_mcu", dev.ToString());
     }
   } catch (const std::exception& e) {
     r.problems.push_back(std::string("Hall MCU: ") + e.what());
@@ -298,40 +356,204 @@ RigCheckResult CheckRigOnly(const OrchestratorOptions& options, const dataset::R
 RigCheckError::RigCheckError(const RigCheckResult& result)
     : std::runtime_error(JoinLines(result.problems)), result_(result) {}
 
+namespace {
+
+constexpr const char* kPlanSessionYamlKey = "plan.session_yaml";
+constexpr const char* kPlanCameraYamlKey = "plan.camera_yaml";
+constexpr const char* kRunKindKey = "run.kind";
+
+// Where a frame the gate finally rejected is kept: rejected/<step>_<name>.png.
+std::string RejectedFile(const std::string& file) {
+  std::string name = file;
+  for (char& c : name) c = c == '/' ? '_' : c;
+  return "rejected/" + name;
+}
+
+std::string QualityJson(const GateResult& g, bool gate_ran, int attempt,
+                        const std::string& plan_file) {
+  nlohmann::json j;
+  j["plan_file"] = plan_file;
+  j["gate"] = gate_ran;
+  j["attempt"] = attempt;
+  if (gate_ran) {
+    j["dots_found"] = g.dots_found;
+    j["dots_expected"] = g.dots_expected;
+    j["saturated_fraction"] = g.saturated_fraction;
+    int boards = 0;
+    for (const auto& b : g.boards) boards += b ? 1 : 0;
+    j["boards_found"] = boards;
+    if (!g.reason.empty()) j["reason"] = g.reason;
+  }
+  return j.dump();
+}
+
+// Moves a Hall recording cut short (and its clock and reset files) aside as
+// <name>.partial-<n>.csv; returns the new readings file names.
+std::vector<std::string> KeepPartialHall(const fs::path& hall_dir, const std::string& name) {
+  std::vector<std::string> kept;
+  if (!fs::exists(hall_dir / (name + ".csv"))) return kept;
+  int n = 1;
+  while (fs::exists(hall_dir / (name + ".partial-" + std::to_string(n) + ".csv"))) ++n;
+  const std::string tag = ".partial-" + std::to_string(n);
+  std::vector<fs::path> files;  // collected first: no renames while iterating
+  for (const auto& entry : fs::directory_iterator(hall_dir)) files.push_back(entry.path());
+  for (const auto& path : files) {
+    const std::string f = path.filename().string();
+    // name.csv, name_clock.csv, name-reset<N>.csv, name-reset<N>_clock.csv
+    if (f.rfind(name, 0) != 0 || path.extension() != ".csv") continue;
+    const std::string rest = f.substr(name.size());
+    if (!(rest == ".csv" || rest == "_clock.csv" || rest.rfind("-reset", 0) == 0)) continue;
+    const std::string stem = f.substr(0, f.size() - 4);
+    const std::string moved = name + tag + stem.substr(name.size()) + ".csv";
+    fs::rename(path, hall_dir / moved);
+    if (rest == ".csv") kept.push_back("hall/" + moved);
+  }
+  return kept;
+}
+
+bool StepDone(const store::SessionStore& journal, const char* name) {
+  for (const auto& [n, state] : journal.Steps())
+    if (n == name) return state == store::StepState::kDone;
+  return false;
+}
+
+}  // namespace
+
+SessionJournalState ReadSessionJournal(const fs::path& dir) {
+  SessionJournalState st;
+  if (!fs::exists(dir / store::kSessionDbName)) return st;
+  const store::SystemClock clock;
+  auto journal = store::SessionStore::Open(dir, clock, /*read_only=*/true);
+  st.exists = true;
+  st.run_kind = journal->GetMeta(kRunKindKey).value_or("");
+  st.run_config_yaml = journal->ConfigYaml();
+  st.rig_id = journal->GetMeta("rig_id").value_or("");
+  st.mirror_id = journal->GetMeta("mirror_id").value_or("");
+  st.note = journal->GetMeta("note").value_or("");
+  for (const auto& [name, state] : journal->Steps()) {
+    st.steps.emplace_back(name, store::ToString(state));
+    if (name == kStepSessionWritten && state == store::StepState::kDone) st.complete = true;
+  }
+  st.frames_recorded = journal->Frames().size();
+  return st;
+}
+
+dataset::Recording LoadSessionPlan(const fs::path& dir) {
+  if (!fs::exists(dir / store::kSessionDbName))
+    throw std::runtime_error(dir.string() + ": no session journal (" + store::kSessionDbName +
+                             ") here");
+  const store::SystemClock clock;
+  auto journal = store::SessionStore::Open(dir, clock, /*read_only=*/true);
+  const auto session_yaml = journal->GetMeta(kPlanSessionYamlKey);
+  const auto camera_yaml = journal->GetMeta(kPlanCameraYamlKey);
+  if (!session_yaml || !camera_yaml)
+    throw std::runtime_error(dir.string() + ": the journal holds no session plan (meta " +
+                             kPlanSessionYamlKey + "): not written by a session run");
+  dataset::Recording plan;
+  const std::string where = (dir / store::kSessionDbName).string();
+  interchange::ParseSessionYaml(*session_yaml, where + " [" + kPlanSessionYamlKey + "]", &plan);
+  plan.camera = interchange::ParseCameraYaml(*camera_yaml, where + " [" + kPlanCameraYamlKey + "]");
+  return plan;
+}
+
 SessionResult RunSession(const OrchestratorOptions& options, const dataset::Recording& plan,
                          RigOperator& rig_operator, const ProgressFn& progress) {
   if (std::string e = options.Validate(); !e.empty()) throw std::invalid_argument(e);
   const fs::path out = options.out_dir;
-  if (fs::exists(out) && !fs::is_empty(out))
-    throw std::runtime_error(out.string() + ": session folder exists and is not empty");
+  const store::SystemClock system_clock;
+  const store::Clock& clock = options.clock ? *options.clock : system_clock;
+  const std::string plan_yaml = interchange::FormatSessionYaml(plan);
+  std::unique_ptr<store::SessionStore> journal;
+  // Frames recorded before a resume, by plan file: true when accepted.
+  std::map<std::string, bool> recorded;
+  if (options.resume) {
+    if (!fs::exists(out / store::kSessionDbName))
+      throw std::runtime_error(out.string() + ": no session journal (" + store::kSessionDbName +
+                               ") to resume");
+    journal = store::SessionStore::Open(out, clock);
+    if (journal->GetMeta(kPlanSessionYamlKey).value_or("") != plan_yaml ||
+        journal->GetMeta(kPlanCameraYamlKey).value_or("") !=
+            interchange::FormatCameraYaml(plan.camera))
+      throw std::runtime_error(out.string() +
+                               ": the plan given differs from the plan this session was started "
+                               "with (LoadSessionPlan gives the stored one)");
+    for (const auto& f : journal->Frames()) {
+      const auto q = nlohmann::json::parse(f.quality_json, nullptr, false);
+      std::string plan_file = f.file;
+      if (q.is_object() && q.contains("plan_file")) plan_file = q["plan_file"].get<std::string>();
+      recorded[plan_file] = f.accepted;
+    }
+  } else {
+    if (fs::exists(out) && !fs::is_empty(out))
+      throw std::runtime_error(out.string() + ": session folder exists and is not empty");
+    store::SessionMetadata meta;
+    meta.rig_id = options.rig_id;
+    meta.mirror_id = options.mirror_id;
+    meta.note = options.note;
+    meta.description = plan;
+    meta.config_yaml = options.run_config_yaml;
+    journal = store::SessionStore::Create(out, meta, clock);
+    journal->SetMeta(kRunKindKey, options.run_kind);
+    journal->SetMeta(kPlanSessionYamlKey, plan_yaml);
+    journal->SetMeta(kPlanCameraYamlKey, interchange::FormatCameraYaml(plan.camera));
+    journal->SetTriggers(plan.triggers);
+    for (const char* step : {kStepRigCheck, kStep1, kStepBackground, kStep2, kStepSessionWritten})
+      journal->SetStep(step, store::StepState::kPending);
+  }
   fs::create_directories(out / "step1");
   fs::create_directories(out / "step2");
   fs::create_directories(out / "hall");
-  SessionLog log(out / "session_log.txt", progress);
+  SessionLog log(out / "session_log.txt", progress, journal.get());
+  TranscriptFile transcript(out / "generators_transcript.txt");
   SessionResult result;
   result.folder = out;
-  log.Line("session " + out.string() + ": " + std::to_string(plan.step1.size()) +
-           " step-1 frames, " + std::to_string(plan.step2.size()) + " step-2 frames, " +
-           std::to_string(plan.triggers.size()) + " triggers");
+  result.resumed = options.resume;
+  if (options.resume) {
+    transcript.Comment("resumed");
+    log.Line("session " + out.string() + " RESUMED: " + std::to_string(recorded.size()) +
+             " frames already recorded are kept");
+    if (StepDone(*journal, kStepSessionWritten)) {
+      for (const auto& f : plan.step1)
+        result.frames.push_back({f.file, recorded.count(f.file) && recorded[f.file], "", true});
+      for (const auto& f : plan.step2)
+        result.frames.push_back({f.file, recorded.count(f.file) && recorded[f.file], "", true});
+      result.safe_state_confirmed = true;
+      log.Line("session already complete (session.yaml written): nothing to acquire");
+      return result;
+    }
+  } else {
+    log.Line("session " + out.string() + ": " + std::to_string(plan.step1.size()) +
+             " step-1 frames, " + std::to_string(plan.step2.size()) + " step-2 frames, " +
+             std::to_string(plan.triggers.size()) + " triggers");
+  }
 
-  // Rig check.
+  // Rig check. The MCU is checked on options.mcu.device when given (then the operator sets up the
+  // background recording when it is due); otherwise the operator's background device is asked
+  // for now.
+  journal->SetStep(kStepRigCheck, store::StepState::kRunning);
   Instruments inst;
-  std::string background_device;
-  try {
-    background_device = rig_operator.PrepareHallRecording(HallRun::kBackground);
-  } catch (const std::exception& e) {
-    result.rig_check.problems.push_back(std::string("Hall MCU: ") + e.what());
+  std::string background_device = options.mcu.device;
+  const bool ask_background_later = !background_device.empty();
+  if (!ask_background_later) {
+    try {
+      background_device = rig_operator.PrepareHallRecording(HallRun::kBackground);
+    } catch (const std::exception& e) {
+      result.rig_check.problems.push_back(std::string("Hall MCU: ") + e.what());
+    }
   }
   if (result.rig_check.problems.empty())
-    result.rig_check = CheckRig(options, &plan, background_device, &inst);
+    result.rig_check = CheckRig(options, &plan, background_device, &inst, &transcript);
   for (const auto& f : result.rig_check.found) log.Line("rig check: " + f);
+  for (const auto& [role, identity] : result.rig_check.instruments)
+    journal->SetInstrument(role, identity);
   if (!result.rig_check.ok) {
-    for (const auto& p : result.rig_check.problems) log.Line("rig check PROBLEM: " + p);
+    for (const auto& p : result.rig_check.problems) log.Line("rig check PROBLEM: " + p, "error");
     if (inst.master) inst.master->SafeState();
     if (inst.slave) inst.slave->SafeState();
-    log.Line("refused to start; generator outputs off");
+    log.Line("refused to start; generator outputs off", "error");
     throw RigCheckError(result.rig_check);
   }
+  journal->SetStep(kStepRigCheck, store::StepState::kDone);
   log.Line("rig check passed");
 
   // From here on outputs may be on: safe state on signal, exception and exit.
@@ -339,18 +561,17 @@ SessionResult RunSession(const OrchestratorOptions& options, const dataset::Reco
   auto safe_state = [&] {
     const bool ok = rig.SafeState();
     log.Line(ok ? "safe state: generator outputs off (confirmed)"
-                : "safe state: outputs off NOT confirmed by both generators");
+                : "safe state: outputs off NOT confirmed by both generators",
+             ok ? "info" : "error");
     result.safe_state_confirmed = ok;
   };
   // Explicit paths below run safe_state() and Disarm() the guard, so the guard's own action runs
   // only on SIGINT/SIGTERM.
   gen::SafeStateGuard guard([&] {
-    log.Line("interrupted (SIGINT/SIGTERM): switching generator outputs off");
+    log.Line("interrupted (SIGINT/SIGTERM): switching generator outputs off", "error");
     safe_state();
   });
   int accepted_total = 0;
-  std::vector<dataset::Step1Frame> step1_kept;
-  std::vector<dataset::Step2Frame> step2_kept;
   try {
     const gen::RigSignalPlan signals = PlanSessionSignals(options.generators.signals, plan);
     rig.Apply(signals);
@@ -367,8 +588,10 @@ SessionResult RunSession(const OrchestratorOptions& options, const dataset::Reco
     if (camera::Status s = inst.cam->Start(); !s)
       throw std::runtime_error("camera: start streaming: " + s.message);
 
-    // Grabs a frame exposed after the current setup, runs the gate, writes the PNG.
-    auto acquire = [&](const std::string& file, int step, int expected) -> FrameOutcome {
+    // Grabs a frame exposed after the current setup, runs the gate, journals the frame (image
+    // on disk first).
+    auto acquire = [&](int step, size_t index, size_t count, const std::string& file, int expected,
+                       store::FrameRecord record) -> FrameOutcome {
       FrameOutcome fo;
       fo.file = file;
       for (int attempt = 0; attempt < options.max_gate_attempts; ++attempt) {
@@ -389,77 +612,167 @@ SessionResult RunSession(const OrchestratorOptions& options, const dataset::Reco
         g.accepted = true;
         if (options.run_quality_gate)
           g = CheckFrame(image, step, expected, plan.world_board, plan.sliding_board, options.gate);
+        const bool last = g.accepted || attempt + 1 == options.max_gate_attempts;
+        if (options.on_frame) {
+          FrameReport report;
+          report.step = step;
+          report.index = index;
+          report.count = count;
+          report.file = file;
+          report.attempt = attempt;
+          report.accepted = g.accepted;
+          report.final = last;
+          report.gate = options.run_quality_gate ? &g : nullptr;
+          report.image = &image;
+          options.on_frame(report);
+        }
+        record.accepted = g.accepted;
+        record.quality_json = QualityJson(g, options.run_quality_gate, attempt, file);
         if (g.accepted) {
-          interchange::WriteImageAtomically(out / file, image);
+          record.file = file;
+          journal->AddFrame(record, image);
           fo.accepted = true;
           fo.reason.clear();
           return fo;
         }
         fo.reason = g.reason;
-        if (attempt + 1 == options.max_gate_attempts) {
+        if (last) {
           // Kept for inspection, outside the interchange layout.
-          std::string name = file;
-          for (char& c : name) c = c == '/' ? '_' : c;
-          interchange::WriteImageAtomically(out / "rejected" / name, image);
+          record.file = RejectedFile(file);
+          journal->AddFrame(record, image);
         }
       }
       return fo;
     };
-    auto record = [&](FrameOutcome fo, size_t i, size_t n, const char* step) {
+    auto note = [&](FrameOutcome fo, size_t i, size_t n, const char* step) {
       log.Line(std::string(step) + ": frame " + std::to_string(i + 1) + "/" + std::to_string(n) +
-               " " + fo.file + (fo.accepted ? " accepted" : " REJECTED: " + fo.reason));
+                   " " + fo.file +
+                   (fo.from_journal ? (fo.accepted ? " accepted before the resume (kept)"
+                                                   : " rejected before the resume (kept)")
+                    : fo.accepted   ? " accepted"
+                                    : " REJECTED: " + fo.reason),
+               fo.accepted ? "info" : "warning");
       result.frames.push_back(fo);
-      if (fo.accepted && options.fail_after_frames >= 0 &&
+      if (fo.accepted && !fo.from_journal && options.fail_after_frames >= 0 &&
           ++accepted_total > options.fail_after_frames)
         throw std::runtime_error("injected failure after " + std::to_string(accepted_total) +
                                  " accepted frames (test hook)");
     };
+    auto from_journal = [&](const std::string& file, FrameOutcome* fo) {
+      const auto it = recorded.find(file);
+      if (it == recorded.end()) return false;
+      fo->file = file;
+      fo->accepted = it->second;
+      fo->from_journal = true;
+      return true;
+    };
 
     // Step 1: sliding plate poses, MSM not mounted.
-    for (size_t i = 0; i < plan.step1.size(); ++i) {
-      rig_operator.PrepareStep1Frame(i);
-      FrameOutcome fo = acquire(plan.step1[i].file, 1, ExpectedDots(plan.step1[i]));
-      if (fo.accepted) step1_kept.push_back(plan.step1[i]);
-      record(fo, i, plan.step1.size(), "step 1");
+    if (!StepDone(*journal, kStep1)) {
+      journal->SetStep(kStep1, store::StepState::kRunning);
+      for (size_t i = 0; i < plan.step1.size(); ++i) {
+        const auto& f = plan.step1[i];
+        FrameOutcome fo;
+        if (!from_journal(f.file, &fo)) {
+          rig_operator.PrepareStep1Frame(i);
+          store::FrameRecord record;
+          record.step = "step1";
+          record.pose = f.pose;
+          record.beams = f.beams;
+          fo = acquire(1, i, plan.step1.size(), f.file, ExpectedDots(f), record);
+        }
+        note(fo, i, plan.step1.size(), "step 1");
+      }
+      journal->SetStep(kStep1, store::StepState::kDone);
+    } else {
+      log.Line("step 1: done before the resume");
+      for (const auto& f : plan.step1) {
+        FrameOutcome fo;
+        if (from_journal(f.file, &fo)) result.frames.push_back(fo);
+      }
     }
 
+    // A Hall recording into hall/<name>.csv, journalled once complete.
+    auto hall_done = [&](const std::string& name, const acquisition::HallRecorderResult& r) {
+      const fs::path csv = out / "hall" / (name + ".csv");
+      const dataset::HallRecording rec =
+          interchange::ReadHallCsv(csv, acquisition::ClockCsvPathFor(csv));
+      journal->AppendHallReadings(name, rec.readings);
+      journal->AppendClockEdges(name, rec.clock_edges_us);
+      journal->SetMeta("hall." + name + ".present", "1");
+      log.Line("Hall: " + name + " " + std::to_string(r.counts.readings_delivered) + " readings, " +
+               std::to_string(r.counts.edges_delivered) + " clock edges, " +
+               std::to_string(r.counts.driver.readings_lost) + " lost (" +
+               acquisition::ToString(r.end) + ")");
+    };
+    auto keep_partial = [&](const std::string& name) {
+      for (const auto& f : KeepPartialHall(out / "hall", name)) {
+        log.Line("Hall: the " + name + " recording cut short before the resume is kept as " + f +
+                     " and taken again",
+                 "warning");
+        result.partial_hall_files.push_back(f);
+      }
+    };
+
     // Background Hall recording (mirror top frame removed, coils driven).
-    log.Line("Hall: background recording on " + background_device);
-    {
+    if (!StepDone(*journal, kStepBackground)) {
+      journal->SetStep(kStepBackground, store::StepState::kRunning);
+      keep_partial("background");
+      if (ask_background_later) {
+        const std::string device = rig_operator.PrepareHallRecording(HallRun::kBackground);
+        if (device != background_device) {
+          inst.mcu.reset();
+          hall_mcu::HallMcuOptions link = options.mcu;
+          link.device = device;
+          inst.mcu = hall_mcu::OpenHallMcu(link);
+          background_device = device;
+        }
+      }
+      log.Line("Hall: background recording on " + background_device);
       const auto r = RecordHall(*inst.mcu, out / "hall" / "background.csv", options,
                                 options.background_seconds, nullptr);
       result.background_readings = r.counts.readings_delivered;
       result.background_edges = r.counts.edges_delivered;
-      log.Line("Hall: background " + std::to_string(r.counts.readings_delivered) + " readings, " +
-               std::to_string(r.counts.edges_delivered) + " clock edges, " +
-               std::to_string(r.counts.driver.readings_lost) + " lost (" +
-               acquisition::ToString(r.end) + ")");
+      hall_done("background", r);
+      journal->SetStep(kStepBackground, store::StepState::kDone);
+    } else {
+      log.Line("Hall: background recording done before the resume");
     }
     inst.mcu.reset();
 
     // Step 2 with the actual Hall recording running.
-    const std::string actual_device = rig_operator.PrepareHallRecording(HallRun::kActual);
-    hall_mcu::HallMcuOptions link = options.mcu;
-    link.device = actual_device;
-    auto actual_mcu = hall_mcu::OpenHallMcu(link);
-    log.Line("Hall: actual recording on " + actual_device + " during step 2");
-    const auto r = RecordHall(*actual_mcu, out / "hall" / "actual.csv", options, 0.0, [&] {
-      for (size_t i = 0; i < plan.step2.size(); ++i) {
-        rig_operator.PrepareStep2Frame(i);
-        FrameOutcome fo = acquire(plan.step2[i].file, 2, ExpectedDots(plan.step2[i]));
-        if (fo.accepted) step2_kept.push_back(plan.step2[i]);
-        record(fo, i, plan.step2.size(), "step 2");
-      }
-    });
-    result.actual_readings = r.counts.readings_delivered;
-    result.actual_edges = r.counts.edges_delivered;
-    log.Line("Hall: actual " + std::to_string(r.counts.readings_delivered) + " readings, " +
-             std::to_string(r.counts.edges_delivered) + " clock edges, " +
-             std::to_string(r.counts.driver.readings_lost) + " lost (" +
-             acquisition::ToString(r.end) + ")");
+    if (!StepDone(*journal, kStep2)) {
+      journal->SetStep(kStep2, store::StepState::kRunning);
+      keep_partial("actual");
+      const std::string actual_device = rig_operator.PrepareHallRecording(HallRun::kActual);
+      hall_mcu::HallMcuOptions link = options.mcu;
+      link.device = actual_device;
+      auto actual_mcu = hall_mcu::OpenHallMcu(link);
+      log.Line("Hall: actual recording on " + actual_device + " during step 2");
+      const auto r = RecordHall(*actual_mcu, out / "hall" / "actual.csv", options, 0.0, [&] {
+        for (size_t i = 0; i < plan.step2.size(); ++i) {
+          const auto& f = plan.step2[i];
+          FrameOutcome fo;
+          if (!from_journal(f.file, &fo)) {
+            rig_operator.PrepareStep2Frame(i);
+            store::FrameRecord record;
+            record.step = "step2";
+            record.kind = f.kind;
+            record.beams = f.beams;
+            record.triggers = f.triggers;
+            fo = acquire(2, i, plan.step2.size(), f.file, ExpectedDots(f), record);
+          }
+          note(fo, i, plan.step2.size(), "step 2");
+        }
+      });
+      result.actual_readings = r.counts.readings_delivered;
+      result.actual_edges = r.counts.edges_delivered;
+      hall_done("actual", r);
+      journal->SetStep(kStep2, store::StepState::kDone);
+    }
     inst.cam->Stop();
   } catch (const std::exception& e) {
-    log.Line(std::string("ERROR: ") + e.what());
+    log.Line(std::string("ERROR: ") + e.what(), "error");
     if (inst.cam) inst.cam->Stop();
     safe_state();
     guard.Disarm();  // outputs are off already
@@ -468,18 +781,31 @@ SessionResult RunSession(const OrchestratorOptions& options, const dataset::Reco
   safe_state();
   guard.Disarm();
 
-  // session.yaml last: a folder with a session.yaml is complete.
+  // session.yaml last: a folder with a session.yaml is complete. The frames kept are those the
+  // journal holds as accepted, in plan order.
+  std::map<std::string, bool> accepted;
+  for (const auto& f : journal->Frames()) {
+    const auto q = nlohmann::json::parse(f.quality_json, nullptr, false);
+    if (f.accepted)
+      accepted[q.is_object() && q.contains("plan_file") ? q["plan_file"].get<std::string>()
+                                                        : f.file] = true;
+  }
   dataset::Recording rec = plan;
   rec.hall_actual.reset();
   rec.hall_background.reset();
-  rec.step1 = step1_kept;
-  rec.step2 = step2_kept;
+  rec.step1.clear();
+  rec.step2.clear();
+  for (const auto& f : plan.step1)
+    if (accepted.count(f.file)) rec.step1.push_back(f);
+  for (const auto& f : plan.step2)
+    if (accepted.count(f.file)) rec.step2.push_back(f);
   if (std::string e = interchange::CheckRecording(rec); !e.empty())
     throw std::runtime_error("session after quality gates: " + e);
   interchange::WriteRecording(out, rec);
   (void)interchange::ReadRecording(out);  // reads back, Hall files included
-  log.Line("session written: " + std::to_string(step1_kept.size()) + "/" +
-           std::to_string(plan.step1.size()) + " step-1 and " + std::to_string(step2_kept.size()) +
+  journal->SetStep(kStepSessionWritten, store::StepState::kDone);
+  log.Line("session written: " + std::to_string(rec.step1.size()) + "/" +
+           std::to_string(plan.step1.size()) + " step-1 and " + std::to_string(rec.step2.size()) +
            "/" + std::to_string(plan.step2.size()) + " step-2 frames accepted");
   return result;
 }

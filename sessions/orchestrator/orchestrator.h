@@ -9,11 +9,21 @@
 // output off on SIGINT/SIGTERM (then the process ends with 128 + signo), on any exception and at
 // the end of the run; the session log (session_log.txt in the folder) records what happened.
 // Solving is not done here (see app/cmd_demo.cc): the result is a complete interchange folder.
+//
+// Journal: the session folder is also a session store (sessions/store: session.db beside the
+// images). RunSession records as it goes — the plan, the instruments found, every log line as an
+// event, the generators' SCPI transcript (also in generators_transcript.txt), each frame with its
+// gate figures once its image is on disk (accepted and rejected), each completed Hall recording,
+// and the state of every step — so that a session killed at any point (SIGKILL included) can be
+// continued with `options.resume` (`msmcal resume DIR`): frames already recorded are not taken
+// again, a Hall recording cut short is kept as hall/<name>.partial-<n>.csv and taken again.
 
 #include <cstdint>
 #include <filesystem>
 #include <functional>
+#include <opencv2/core.hpp>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "drivers/generator/rig_config.h"
@@ -23,7 +33,33 @@
 #include "sessions/orchestrator/quality_gate.h"
 #include "sessions/orchestrator/rig_operator.h"
 
+namespace msmcal::store {
+class Clock;
+}
+
 namespace msmcal::orchestrator {
+
+// One gate decision on one grabbed frame, for observers (guided previews and live figures,
+// sweep progress). Pointers are valid during the call only.
+struct FrameReport {
+  int step = 1;      // 1 or 2
+  size_t index = 0;  // into the plan's step1 / step2 list
+  size_t count = 0;  // frames in that step
+  std::string file;  // as in session.yaml ("step1/0003.png")
+  int attempt = 0;   // 0-based gate attempt (a frame gets max_gate_attempts)
+  bool accepted = false;
+  bool final = false;                // true: this decision stands (accepted, or the last attempt)
+  const GateResult* gate = nullptr;  // what the gate found (null when the gate is off)
+  const cv::Mat* image = nullptr;    // the frame as grabbed
+};
+using FrameObserver = std::function<void(const FrameReport&)>;
+
+// Step names recorded in the journal, in order.
+inline constexpr const char* kStepRigCheck = "rig_check";
+inline constexpr const char* kStep1 = "step1";
+inline constexpr const char* kStepBackground = "hall_background";
+inline constexpr const char* kStep2 = "step2";  // with the actual Hall recording
+inline constexpr const char* kStepSessionWritten = "session_written";
 
 struct OrchestratorOptions {
   std::filesystem::path out_dir;             // created; must be empty or absent
@@ -43,7 +79,20 @@ struct OrchestratorOptions {
   double background_seconds = 12.0;
   // Test hook: throw after this many accepted frames (< 0: never) to exercise the safe state.
   int fail_after_frames = -1;
-  std::string Validate() const;  // empty when valid; names field, value, constraint
+  // Called after every gate decision (may be empty).
+  FrameObserver on_frame;
+  // Journal metadata (session.db meta keys rig_id, mirror_id, note, run.kind, config_yaml).
+  // run_kind tells `msmcal resume` which rig to rebuild: "lab" (config_yaml = the rig
+  // configuration), "demo" (config_yaml = the simulator options), "replay" (config_yaml names the
+  // recorded session).
+  std::string rig_id, mirror_id, note;
+  std::string run_kind = "lab";
+  std::string run_config_yaml;
+  // Continue the session in out_dir (which must hold a session.db written by RunSession) instead
+  // of starting one; `plan` must be the plan stored there (see LoadSessionPlan).
+  bool resume = false;
+  const store::Clock* clock = nullptr;  // journal wall clock; null: the system clock
+  std::string Validate() const;         // empty when valid; names field, value, constraint
 };
 
 // One line of progress ("step 1: frame 3/15 accepted").
@@ -52,13 +101,15 @@ using ProgressFn = std::function<void(const std::string& line)>;
 struct FrameOutcome {
   std::string file;
   bool accepted = false;
-  std::string reason;  // why it was rejected
+  std::string reason;         // why it was rejected
+  bool from_journal = false;  // recorded before a resume, not taken again
 };
 
 struct RigCheckResult {
   bool ok = false;
   std::vector<std::string> problems;  // one per problem found (empty when ok)
   std::vector<std::string> found;     // identities / formats / stream figures
+  std::vector<std::pair<std::string, std::string>> instruments;  // (role, identity) found
 };
 
 struct SessionResult {
@@ -68,6 +119,8 @@ struct SessionResult {
   uint64_t actual_readings = 0, actual_edges = 0;
   bool safe_state_confirmed = false;
   std::filesystem::path folder;
+  bool resumed = false;
+  std::vector<std::string> partial_hall_files;  // recordings cut short, kept (resume)
 };
 
 // The generator plan for a session: drives and clock from the configuration's signal design, and
@@ -103,5 +156,19 @@ class RigCheckError : public std::runtime_error {
 // failures (after the safe state).
 SessionResult RunSession(const OrchestratorOptions& options, const dataset::Recording& plan,
                          RigOperator& rig_operator, const ProgressFn& progress);
+
+// What a journal says about a session, for `msmcal resume` and the sweep runner.
+struct SessionJournalState {
+  bool exists = false;    // a session.db is there
+  bool complete = false;  // session.yaml written (kStepSessionWritten done)
+  std::string run_kind;   // OrchestratorOptions::run_kind
+  std::string run_config_yaml;
+  std::string rig_id, mirror_id, note;
+  std::vector<std::pair<std::string, std::string>> steps;  // (name, pending|running|done)
+  size_t frames_recorded = 0;
+};
+SessionJournalState ReadSessionJournal(const std::filesystem::path& dir);
+// The plan RunSession stored in `dir`'s journal. Throws std::runtime_error naming the folder.
+dataset::Recording LoadSessionPlan(const std::filesystem::path& dir);
 
 }  // namespace msmcal::orchestrator

@@ -47,7 +47,7 @@ GateResult CheckFrame(const cv::Mat& image, int step, int dots_expected,
   }
   const vision::BoardSize world{world_board.cols, world_board.rows};
   const vision::BoardSize sliding{sliding_board.cols, sliding_board.rows};
-  std::vector<std::optional<vision::CheckerboardDetection>> found;
+  std::vector<std::optional<vision::CheckerboardDetection>>& found = r.boards;
   if (step == 1) {
     found = vision::DetectCheckerboards(image, {sliding, world}, options.boards);
     if (!found[0]) {
@@ -70,7 +70,8 @@ GateResult CheckFrame(const cv::Mat& image, int step, int dots_expected,
   }
   // A copy: vision::DetectDots writes its top-hat into the caller's pixels (dots.cc:155-161,
   // `signal = image` shares the buffer), and the frame must be saved unchanged.
-  const std::vector<vision::Dot> dots = vision::DetectDots(image.clone(), options.dots);
+  r.dots = vision::DetectDots(image.clone(), options.dots);
+  const std::vector<vision::Dot>& dots = r.dots;
   r.dots_found = static_cast<int>(dots.size());
   if (r.dots_found < dots_expected || r.dots_found > dots_expected + options.max_extra_dots) {
     r.reason = "expected " + std::to_string(dots_expected) + " dots";

@@ -6,6 +6,7 @@
 //   board). A rejected frame says why.
 
 #include <opencv2/core.hpp>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -36,6 +37,11 @@ struct GateResult {
   int dots_found = 0;
   int dots_expected = 0;
   double saturated_fraction = 0;
+  // What the gate detected, for previews and live figures: boards in the order checked
+  // (step 1: sliding, world; step 2: world; empty entries were not found; boards after the first
+  // missing one are not searched) and the dots (empty when the gate stopped before them).
+  std::vector<std::optional<vision::CheckerboardDetection>> boards;
+  std::vector<vision::Dot> dots;
 };
 
 // step: 1 or 2. dots_expected: beams x max(1, triggers) of the frame.

@@ -1,0 +1,128 @@
+#include "app/session_flow.h"
+
+#include <cstdio>
+#include <cstdlib>
+#include <stdexcept>
+
+#include "mocks/rig/truth_io.h"
+#include "sessions/orchestrator/demo_rig.h"
+#include "sessions/store/session_store.h"
+#include "sessions/store/transfer.h"
+
+namespace msmcal::app {
+
+namespace fs = std::filesystem;
+
+std::string ShellQuote(const std::string& s) {
+  std::string q = "'";
+  for (char c : s) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
+  return q + "'";
+}
+
+bool RunSelf(const std::string& args, std::vector<std::string>* notes, bool echo) {
+  const std::string exe = fs::read_symlink("/proc/self/exe").string();
+  std::string cmd = ShellQuote(exe) + " " + args;
+  if (echo) {
+    std::printf("\n$ msmcal %s\n", args.c_str());
+  } else {
+    cmd += " >/dev/null 2>&1";
+  }
+  std::fflush(stdout);
+  const int rc = std::system(cmd.c_str());
+  const bool ok = rc == 0;
+  if (notes)
+    notes->push_back("msmcal " + args +
+                     (ok ? ": ok" : ": FAILED (status " + std::to_string(rc) + ")"));
+  return ok;
+}
+
+orchestrator::SessionResult RunDemoAcquisition(const fs::path& out,
+                                               const DemoAcquisitionOptions& options) {
+  orchestrator::DemoRigOptions ro;
+  ro.sim = options.sim;
+  ro.camera_address = options.camera_address;
+  ro.camera_frame_rate_hz = options.camera_frame_rate_hz;
+  orchestrator::DemoRig rig(ro);
+  if (options.progress) {
+    for (const auto& w : rig.sim().warnings()) options.progress("simulator warning: " + w);
+    char buf[200];
+    std::snprintf(buf, sizeof(buf),
+                  "demo rig: generators on ports %d and %d, camera %dx%d on %s; %zu step-1 and "
+                  "%zu step-2 frames, %zu triggers",
+                  rig.generators_port(1), rig.generators_port(2), rig.sim().camera().width,
+                  rig.sim().camera().height, options.camera_address.c_str(),
+                  rig.sim().step1_frames().size(), rig.sim().step2_frames().size(),
+                  rig.sim().triggers().size());
+    options.progress(buf);
+  }
+  orchestrator::OrchestratorOptions oo = rig.MakeOrchestratorOptions(out);
+  oo.run_kind = "demo";
+  oo.run_config_yaml = sim::SimOptionsToYaml(options.sim);
+  oo.rig_id = "demo-rig (mock instruments)";
+  oo.mirror_id = "simulated MSM, seed " + std::to_string(options.sim.seed);
+  oo.note = options.note;
+  oo.resume = options.resume;
+  if (options.adjust_options) options.adjust_options(oo);
+  const dataset::Recording plan = rig.Plan();
+  std::unique_ptr<orchestrator::RigOperator> op;
+  if (options.make_operator) op = options.make_operator(rig.world(), plan);
+  orchestrator::RigOperator& who = op ? *op : rig.world();
+  orchestrator::SessionResult result = orchestrator::RunSession(oo, plan, who, options.progress);
+  sim::WriteTruth(out, sim::MakeTruth(rig.sim()));
+  return result;
+}
+
+FinishResult FinishSession(const fs::path& dir, const FinishOptions& options,
+                           std::vector<std::string>* notes) {
+  FinishResult r;
+  const fs::path results = dir / "results";
+  const std::string d = ShellQuote(dir.string());
+  std::unique_ptr<store::SessionStore> journal;
+  const store::SystemClock clock;
+  if (fs::exists(dir / store::kSessionDbName)) journal = store::SessionStore::Open(dir, clock);
+  auto step = [&](const char* name, store::StepState state) {
+    if (journal) journal->SetStep(name, state);
+  };
+  auto skip = [&](const fs::path& output, const char* what) {
+    if (!options.skip_done || !fs::exists(output)) return false;
+    if (options.echo) std::printf("%s: already done (%s exists)\n", what, output.c_str());
+    if (notes) notes->push_back(std::string(what) + ": already done");
+    return true;
+  };
+
+  r.solved = skip(results / "summary.json", "solve");
+  if (!r.solved) {
+    step("solve", store::StepState::kRunning);
+    r.solved = RunSelf("solve " + d + " --threads " + std::to_string(options.threads), notes,
+                       options.echo);
+    if (r.solved) step("solve", store::StepState::kDone);
+  }
+  if (r.solved) {
+    r.hall_calibrated = skip(results / "hall_model.yaml", "hall calibrate");
+    if (!r.hall_calibrated) {
+      step("hall_calibration", store::StepState::kRunning);
+      r.hall_calibrated = RunSelf("hall calibrate " + d, notes, options.echo);
+    }
+    if (r.hall_calibrated) {
+      r.hall_predicted = skip(results / "hall_poses.csv", "hall predict");
+      if (!r.hall_predicted)
+        r.hall_predicted =
+            RunSelf("hall predict " + ShellQuote((results / "hall_model.yaml").string()) + " " +
+                        ShellQuote((dir / "hall" / "actual.csv").string()) + " " +
+                        ShellQuote((results / "hall_poses.csv").string()),
+                    notes, options.echo);
+      if (r.hall_predicted) step("hall_calibration", store::StepState::kDone);
+    }
+  } else if (options.echo) {
+    std::printf("SKIPPED: Hall calibration (needs the solver's mirror poses)\n");
+  }
+  if (journal && fs::exists(results)) {
+    store::PutResultsFromFolder(*journal, results);
+    journal->AddEvent("info", std::string("results stored: solve ") + (r.solved ? "ok" : "failed") +
+                                  ", hall calibration " +
+                                  (r.hall_calibrated && r.hall_predicted ? "ok" : "not done"));
+  }
+  return r;
+}
+
+}  // namespace msmcal::app

@@ -1,0 +1,68 @@
+#pragma once
+// The parts of a session run shared by `msmcal demo`, `msmcal resume`, `msmcal sweep` and
+// `msmcal replay`: a simulated acquisition on the demo rig (mocks in this process, real drivers),
+// and the steps after acquisition (solve, Hall calibration and prediction) as child processes of
+// this executable, with their results recorded into the session's journal.
+
+#include <filesystem>
+#include <functional>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "mocks/rig/sim_options.h"
+#include "processing/dataset/recording.h"
+#include "sessions/orchestrator/orchestrator.h"
+#include "sessions/orchestrator/rig_operator.h"
+
+namespace msmcal::app {
+
+// Single-quotes `s` for /bin/sh.
+std::string ShellQuote(const std::string& s);
+
+// Runs this executable with `args` (already quoted); true on exit status 0. With `echo`, prints
+// "$ msmcal <args>" first. Appends "msmcal <args>: ok|FAILED (status N)" to `notes` (if given).
+bool RunSelf(const std::string& args, std::vector<std::string>* notes, bool echo = true);
+
+struct DemoAcquisitionOptions {
+  sim::SimOptions sim;
+  std::string camera_address = "127.0.0.1";
+  double camera_frame_rate_hz = 20.0;
+  bool resume = false;  // continue the session journalled in the folder
+  // Who stands at the rig. Empty: the demo rig's SimulatedWorld itself. Otherwise called with
+  // the world and the plan; the returned operator is used for the session (e.g. the guided
+  // console operator in front of the world).
+  std::function<std::unique_ptr<orchestrator::RigOperator>(orchestrator::RigOperator& world,
+                                                           const dataset::Recording& plan)>
+      make_operator;
+  // Last changes to the orchestrator options before the run (observers, gate options, ...).
+  std::function<void(orchestrator::OrchestratorOptions&)> adjust_options;
+  orchestrator::ProgressFn progress;
+  std::string note = "msmcal demo";
+};
+
+// Starts the demo rig for `options.sim`, runs (or resumes) the session into `out` with run_kind
+// "demo" (the simulator options are journalled, so `msmcal resume` can rebuild the rig), and
+// writes the simulator's truth to out/truth. Throws what RunSession throws.
+orchestrator::SessionResult RunDemoAcquisition(const std::filesystem::path& out,
+                                               const DemoAcquisitionOptions& options);
+
+struct FinishOptions {
+  bool skip_done = true;  // skip steps whose outputs exist (resume)
+  bool echo = true;       // print the commands and their output
+  int threads = 2;
+};
+struct FinishResult {
+  bool solved = false, hall_calibrated = false, hall_predicted = false;
+  bool ok() const { return solved && hall_calibrated && hall_predicted; }
+};
+
+// The steps after a written session (session.yaml present): `msmcal solve DIR`,
+// `msmcal hall calibrate DIR`, `msmcal hall predict` (results/hall_poses.csv). With skip_done, a
+// step whose output exists (results/summary.json, results/hall_model.yaml,
+// results/hall_poses.csv) is not run again. When the folder has a journal (session.db), the
+// results/ files are stored into it and the steps "solve" / "hall_calibration" recorded.
+FinishResult FinishSession(const std::filesystem::path& dir, const FinishOptions& options,
+                           std::vector<std::string>* notes);
+
+}  // namespace msmcal::app
