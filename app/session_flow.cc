@@ -95,13 +95,14 @@ FinishResult FinishSession(const fs::path& dir, const FinishOptions& options,
     step("solve", store::StepState::kRunning);
     r.solved = RunSelf("solve " + d + " --threads " + std::to_string(options.threads), notes,
                        options.echo);
-    if (r.solved) step("solve", store::StepState::kDone);
+    step("solve", r.solved ? store::StepState::kDone : store::StepState::kFailed);
   }
   if (r.solved) {
     r.hall_calibrated = skip(results / "hall_model.yaml", "hall calibrate");
     if (!r.hall_calibrated) {
       step("hall_calibration", store::StepState::kRunning);
       r.hall_calibrated = RunSelf("hall calibrate " + d, notes, options.echo);
+      if (!r.hall_calibrated) step("hall_calibration", store::StepState::kFailed);
     }
     if (r.hall_calibrated) {
       r.hall_predicted = skip(results / "hall_poses.csv", "hall predict");
@@ -111,7 +112,8 @@ FinishResult FinishSession(const fs::path& dir, const FinishOptions& options,
                         ShellQuote((dir / "hall" / "actual.csv").string()) + " " +
                         ShellQuote((results / "hall_poses.csv").string()),
                     notes, options.echo);
-      if (r.hall_predicted) step("hall_calibration", store::StepState::kDone);
+      step("hall_calibration",
+           r.hall_predicted ? store::StepState::kDone : store::StepState::kFailed);
     }
   } else if (options.echo) {
     std::printf("SKIPPED: Hall calibration (needs the solver's mirror poses)\n");

@@ -42,7 +42,7 @@ CREATE TABLE clock_edges(recording TEXT NOT NULL, seq INTEGER NOT NULL,
 CREATE TABLE results(name TEXT PRIMARY KEY, content BLOB NOT NULL, updated_ns INTEGER NOT NULL);
 CREATE TABLE attachments(path TEXT PRIMARY KEY, content BLOB NOT NULL);
 CREATE TABLE steps(name TEXT PRIMARY KEY,
-                   state TEXT NOT NULL CHECK (state IN ('pending', 'running', 'done')),
+                   state TEXT NOT NULL CHECK (state IN ('pending', 'running', 'done', 'failed')),
                    updated_ns INTEGER NOT NULL);
 )sql";
 
@@ -184,6 +184,7 @@ dataset::Step2Kind KindFromString(const std::string& s, const fs::path& dir) {
 StepState StateFromString(const std::string& s) {
   if (s == "running") return StepState::kRunning;
   if (s == "done") return StepState::kDone;
+  if (s == "failed") return StepState::kFailed;
   return StepState::kPending;
 }
 
@@ -203,6 +204,8 @@ const char* ToString(StepState state) {
       return "running";
     case StepState::kDone:
       return "done";
+    case StepState::kFailed:
+      return "failed";
   }
   return "?";
 }

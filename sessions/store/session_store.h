@@ -83,8 +83,8 @@ struct SessionMetadata {
   std::string config_yaml;  // the run configuration, verbatim (may be empty)
 };
 
-enum class StepState { kPending, kRunning, kDone };
-const char* ToString(StepState state);  // "pending" | "running" | "done"
+enum class StepState { kPending, kRunning, kDone, kFailed };
+const char* ToString(StepState state);  // "pending" | "running" | "done" | "failed"
 
 struct EventRecord {
   int64_t id = 0;

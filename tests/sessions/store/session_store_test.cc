@@ -116,6 +116,7 @@ TEST(SessionStoreTest, EverythingWrittenReadsBackAfterReopen) {
     store->PutAttachment("marg/validation.csv", "t_s,mx_uT,my_uT,mz_uT\n");
     store->SetStep("step1", StepState::kDone);
     store->SetStep("step2", StepState::kRunning);
+    store->SetStep("solve", StepState::kFailed);
     store->SetMeta("custom", "x");
   }
   auto store = SessionStore::Open(dir, clock);
@@ -174,9 +175,11 @@ TEST(SessionStoreTest, EverythingWrittenReadsBackAfterReopen) {
   EXPECT_EQ(*store->GetResult("summary.json"), R"({"rms_px": 0.25})");
   EXPECT_EQ(store->AttachmentPaths(), (std::vector<std::string>{"marg/validation.csv"}));
   const auto steps = store->Steps();
-  ASSERT_EQ(steps.size(), 2u);
+  ASSERT_EQ(steps.size(), 3u);
   EXPECT_EQ(steps[0].first, "step1");
   EXPECT_EQ(steps[1].second, StepState::kRunning);
+  EXPECT_EQ(steps[2].second, StepState::kFailed);
+  EXPECT_STREQ(ToString(steps[2].second), "failed");
   const auto counts = store->Counts();
   EXPECT_EQ(counts.frames, 2);
   EXPECT_EQ(counts.hall_readings.at("actual"), 250);
