@@ -1,7 +1,8 @@
-// `msmcal resume DIR`: continues a session that was interrupted (Ctrl-C, a crash, SIGKILL, power
-// loss) from the last step its journal (DIR/session.db) records: frames already recorded are
-// kept and not taken again, a Hall recording cut short is kept aside and taken again, then the
-// steps after acquisition (solve, Hall calibration) that have no output yet are run.
+// `msmcal resume DIR [--camera-address ADDR]`: continues a session that was interrupted (Ctrl-C, a
+// crash, SIGKILL, power loss) from the last step its journal (DIR/session.db) records: frames
+// already recorded are kept and not taken again, a Hall recording cut short is kept aside and taken
+// again, then the steps after acquisition (solve, Hall calibration) that have no output yet are
+// run.
 #include <CLI/CLI.hpp>
 #include <chrono>
 #include <cstdio>
@@ -45,26 +46,34 @@ void RunResume(const ResumeArgs& args) {
   std::fflush(stdout);
 
   std::vector<std::string> notes;
-  if (!journal.complete) {
-    if (journal.run_kind != "demo")
-      throw std::runtime_error(
-          dir.string() + ": a '" + journal.run_kind +
-          "' session's acquisition cannot be continued by `msmcal resume` (only sessions of "
-          "`msmcal demo` and `msmcal sweep` points, whose rig msmcal starts itself; re-run a "
-          "replay with `msmcal replay`)");
+  auto progress = [&](const std::string& line) {
+    std::printf("[%6.1f s] %s\n", elapsed(), line.c_str());
+    std::fflush(stdout);
+    notes.push_back(line);
+  };
+  if (journal.complete) {
+    std::printf("acquisition complete before the resume (session.yaml written)\n");
+  } else if (journal.run_kind == "demo") {
     DemoAcquisitionOptions acq;
     acq.sim = sim::ParseSimOptions(journal.run_config_yaml,
                                    (dir / "session.db").string() + " [config_yaml]");
     acq.camera_address = args.camera_address;
     acq.resume = true;
-    acq.progress = [&](const std::string& line) {
-      std::printf("[%6.1f s] %s\n", elapsed(), line.c_str());
-      std::fflush(stdout);
-      notes.push_back(line);
-    };
+    acq.progress = progress;
     (void)RunDemoAcquisition(dir, acq);
+  } else if (journal.run_kind == "lab") {
+    LabAcquisitionOptions lab = LabOptionsFromJournal(dir, journal.run_config_yaml);
+    lab.plan = orchestrator::LoadSessionPlan(dir);
+    lab.rig_id = journal.rig_id;
+    lab.mirror_id = journal.mirror_id;
+    lab.note = journal.note;
+    lab.resume = true;
+    lab.progress = progress;
+    (void)RunLabAcquisition(dir, lab);
   } else {
-    std::printf("acquisition complete before the resume (session.yaml written)\n");
+    throw std::runtime_error(dir.string() + ": a '" + journal.run_kind +
+                             "' session's acquisition cannot be continued by `msmcal resume` "
+                             "(re-run a replay with `msmcal replay`)");
   }
   const FinishResult finished = FinishSession(dir, FinishOptions{}, &notes);
   const orchestrator::SessionReport report = orchestrator::BuildSessionReport(dir, notes);

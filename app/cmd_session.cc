@@ -4,15 +4,31 @@
 // opens the camera by address (Mono8), identifies the Hall MCU and reads a status frame. Prints
 // what it found and, when something is wrong, the list of problems (exit status 1). Generator
 // outputs are left off.
+//
+// `msmcal session run --rig FILE --camera ADDR --plan DIR --out DIR [--mcu DEVICE] [--rig-id ID]
+// [--mirror-id ID] [--note TEXT]`: a calibration session on the real rig, guided on this
+// terminal (what to mount, move, remove before every frame and Hall recording; live quality
+// figures; annotated previews in DIR/previews), journalled in DIR/session.db, then solved and
+// the Hall sensor calibrated. The plan folder holds session.yaml and camera.yaml as the
+// interchange format defines them (boards, beams, drive, clock, the trigger table and the frames
+// to take). Interrupted, it continues with `msmcal resume DIR`.
 #include <CLI/CLI.hpp>
+#include <chrono>
 #include <cstdio>
+#include <filesystem>
+#include <fstream>
 #include <memory>
+#include <sstream>
 #include <string>
+#include <vector>
 
 #include "app/command_registry.h"
+#include "app/session_flow.h"
 #include "drivers/generator/rig_config.h"
 #include "drivers/hall_mcu/hall_mcu_config.h"
+#include "sessions/interchange/interchange_io.h"
 #include "sessions/orchestrator/orchestrator.h"
+#include "sessions/orchestrator/report.h"
 
 namespace msmcal::app {
 namespace {
@@ -44,6 +60,57 @@ void RunSessionCheck(const SessionCheckArgs& args) {
   std::printf("rig check passed; generator outputs are off\n");
 }
 
+struct SessionRunArgs {
+  std::string rig = "config/rig.yaml";
+  std::string camera;
+  std::string mcu;
+  std::string plan;
+  std::string out;
+  std::string rig_id, mirror_id, note;
+  double frame_rate_hz = 10.0;
+};
+
+void RunSessionRun(const SessionRunArgs& args) {
+  namespace fs = std::filesystem;
+  const auto start = std::chrono::steady_clock::now();
+  const fs::path out = fs::absolute(args.out);
+  if (fs::exists(out) && !fs::is_empty(out))
+    throw std::runtime_error(out.string() +
+                             ": exists and is not empty (an interrupted session continues with "
+                             "`msmcal resume " +
+                             out.string() + "`)");
+  LabAcquisitionOptions lab;
+  {
+    std::ifstream in(args.rig, std::ios::binary);
+    if (!in) throw std::runtime_error(args.rig + ": cannot read the rig configuration");
+    std::stringstream text;
+    text << in.rdbuf();
+    lab.rig_yaml = text.str();
+  }
+  lab.rig_origin = args.rig;
+  lab.camera_address = args.camera;
+  lab.mcu_device = args.mcu;
+  lab.camera_frame_rate_hz = args.frame_rate_hz;
+  lab.plan = ReadPlanFolder(args.plan);
+  lab.rig_id = args.rig_id;
+  lab.mirror_id = args.mirror_id;
+  lab.note = args.note;
+  std::vector<std::string> notes;
+  lab.progress = [&](const std::string& line) {
+    const double t =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    std::printf("[%6.1f s] %s\n", t, line.c_str());
+    std::fflush(stdout);
+    notes.push_back(line);
+  };
+  (void)RunLabAcquisition(out, lab);
+  const FinishResult finished = FinishSession(out, FinishOptions{}, &notes);
+  const orchestrator::SessionReport report = orchestrator::BuildSessionReport(out, notes);
+  interchange::WriteFileAtomically(out / "report.html", report.html);
+  std::printf("\n%s\nreport: %s\n", report.text.c_str(), (out / "report.html").string().c_str());
+  if (!finished.ok()) throw CLI::RuntimeError(1);
+}
+
 void AddSessionCommands(CLI::App& app) {
   CLI::App* session = GetOrAddSubcommand(app, "session", "Calibration sessions on the rig");
   auto args = std::make_shared<SessionCheckArgs>();
@@ -54,6 +121,23 @@ void AddSessionCommands(CLI::App& app) {
       ->required();
   check->add_option("--mcu", args->mcu, "Hall MCU serial device (default: the rig file's)");
   check->callback([args] { RunSessionCheck(*args); });
+
+  auto run_args = std::make_shared<SessionRunArgs>();
+  auto* run = session->add_subcommand(
+      "run",
+      "A guided calibration session on the real rig (journalled; `msmcal resume` continues it)");
+  run->add_option("--rig", run_args->rig, "Rig configuration (generators:, hall_mcu:)");
+  run->add_option("--camera", run_args->camera, "Camera IP address (GigE Vision)")->required();
+  run->add_option("--mcu", run_args->mcu, "Hall MCU serial device (default: the rig file's)");
+  run->add_option("--plan", run_args->plan,
+                  "Plan folder: session.yaml + camera.yaml (frames to take, trigger table)")
+      ->required();
+  run->add_option("--out", run_args->out, "Session folder to create")->required();
+  run->add_option("--rig-id", run_args->rig_id, "Rig identifier (catalogue)");
+  run->add_option("--mirror-id", run_args->mirror_id, "Mirror identifier (catalogue)");
+  run->add_option("--note", run_args->note, "Free text (catalogue)");
+  run->add_option("--frame-rate", run_args->frame_rate_hz, "Camera frame rate, Hz");
+  run->callback([run_args] { RunSessionRun(*run_args); });
 }
 
 }  // namespace

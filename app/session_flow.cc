@@ -1,11 +1,22 @@
 #include "app/session_flow.h"
 
+#include <yaml-cpp/yaml.h>
+
 #include <cstdio>
 #include <cstdlib>
+#include <ctime>
+#include <fstream>
+#include <sstream>
 #include <stdexcept>
 
+#include "common/text_io.h"
+#include "drivers/generator/rig_config.h"
+#include "drivers/hall_mcu/hall_mcu_config.h"
 #include "mocks/rig/truth_io.h"
+#include "sessions/interchange/interchange_io.h"
+#include "sessions/orchestrator/console_operator.h"
 #include "sessions/orchestrator/demo_rig.h"
+#include "sessions/orchestrator/preview.h"
 #include "sessions/store/session_store.h"
 #include "sessions/store/transfer.h"
 
@@ -70,6 +81,97 @@ orchestrator::SessionResult RunDemoAcquisition(const fs::path& out,
   orchestrator::SessionResult result = orchestrator::RunSession(oo, plan, who, options.progress);
   sim::WriteTruth(out, sim::MakeTruth(rig.sim()));
   return result;
+}
+
+namespace {
+
+std::string ReadTextFile(const fs::path& file) {
+  std::ifstream in(file, std::ios::binary);
+  if (!in) throw std::runtime_error(file.string() + ": cannot read");
+  std::stringstream text;
+  text << in.rdbuf();
+  return text.str();
+}
+
+int64_t RealtimeNs() {
+  timespec ts{};
+  clock_gettime(CLOCK_REALTIME, &ts);
+  return static_cast<int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
+}
+
+}  // namespace
+
+dataset::Recording ReadPlanFolder(const fs::path& dir) {
+  dataset::Recording plan;
+  interchange::ParseSessionYaml(ReadTextFile(dir / "session.yaml"), (dir / "session.yaml").string(),
+                                &plan);
+  plan.camera = interchange::ParseCameraYaml(ReadTextFile(dir / "camera.yaml"),
+                                             (dir / "camera.yaml").string());
+  if (std::string e = interchange::CheckRecording(plan); !e.empty())
+    throw std::runtime_error(dir.string() + ": plan: " + e);
+  if (plan.triggers.empty())
+    throw std::runtime_error((dir / "session.yaml").string() +
+                             ": triggers: the plan has no trigger table (the laser would never "
+                             "fire in step 2)");
+  return plan;
+}
+
+orchestrator::SessionResult RunLabAcquisition(const fs::path& out,
+                                              const LabAcquisitionOptions& options) {
+  orchestrator::OrchestratorOptions oo;
+  oo.out_dir = out;
+  oo.generators = gen::ParseRigGeneratorConfig(options.rig_yaml, options.rig_origin);
+  const hall_mcu::HallMcuConfig mcu =
+      hall_mcu::ParseHallMcuConfig(options.rig_yaml, options.rig_origin);
+  oo.mcu = mcu.link;
+  if (!options.mcu_device.empty()) oo.mcu.device = options.mcu_device;
+  oo.mcu_rate_hz = mcu.rate_hz;
+  oo.camera_address = options.camera_address;
+  oo.camera_frame_rate_hz = options.camera_frame_rate_hz;
+  oo.run_kind = "lab";
+  YAML::Emitter config;
+  config << YAML::BeginMap << YAML::Key << "rig_file" << YAML::Value << options.rig_origin
+         << YAML::Key << "camera_address" << YAML::Value << options.camera_address << YAML::Key
+         << "mcu_device" << YAML::Value << oo.mcu.device << YAML::Key << "camera_frame_rate_hz"
+         << YAML::Value << common::ShortestDouble(options.camera_frame_rate_hz) << YAML::Key
+         << "rig_yaml" << YAML::Value << YAML::Literal << options.rig_yaml << YAML::EndMap;
+  oo.run_config_yaml = std::string(config.c_str()) + "\n";
+  oo.rig_id = options.rig_id;
+  oo.mirror_id = options.mirror_id;
+  oo.note = options.note;
+  oo.resume = options.resume;
+  if (std::string e = oo.Validate(); !e.empty()) throw std::invalid_argument(e);
+
+  orchestrator::ConsoleOperatorOptions co;
+  co.input_fd = options.input_fd;
+  co.output_fd = options.output_fd;
+  co.mcu_device = oo.mcu.device;
+  co.host_clock_ns = RealtimeNs;  // Aravis stamps host arrival with CLOCK_REALTIME
+  orchestrator::ConsoleOperator console(options.plan, co, nullptr);
+  const orchestrator::FrameObserver live = orchestrator::MakeLiveFigures(options.progress);
+  const orchestrator::FrameObserver previews = orchestrator::MakePreviewWriter(
+      out, options.plan.world_board, options.plan.sliding_board, options.progress);
+  oo.on_frame = [live, previews](const orchestrator::FrameReport& report) {
+    live(report);
+    previews(report);
+  };
+  return orchestrator::RunSession(oo, options.plan, console, options.progress);
+}
+
+LabAcquisitionOptions LabOptionsFromJournal(const fs::path& dir, const std::string& config_yaml) {
+  const std::string where = (dir / "session.db").string() + " [config_yaml]";
+  LabAcquisitionOptions o;
+  try {
+    const YAML::Node n = YAML::Load(config_yaml);
+    o.rig_origin = n["rig_file"].as<std::string>();
+    o.camera_address = n["camera_address"].as<std::string>();
+    o.mcu_device = n["mcu_device"].as<std::string>();
+    o.camera_frame_rate_hz = n["camera_frame_rate_hz"].as<double>();
+    o.rig_yaml = n["rig_yaml"].as<std::string>();
+  } catch (const YAML::Exception& e) {
+    throw std::runtime_error(where + ": not a lab session configuration: " + e.what());
+  }
+  return o;
 }
 
 FinishResult FinishSession(const fs::path& dir, const FinishOptions& options,

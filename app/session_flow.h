@@ -47,6 +47,34 @@ struct DemoAcquisitionOptions {
 orchestrator::SessionResult RunDemoAcquisition(const std::filesystem::path& out,
                                                const DemoAcquisitionOptions& options);
 
+// A session on the real rig (run_kind "lab"), guided: the operator at the terminal is told what
+// to do before every frame and Hall recording (orchestrator::ConsoleOperator on stdin/stdout, no
+// simulated world behind it), sees the live quality figures, and every accepted frame's annotated
+// preview goes to previews/.
+struct LabAcquisitionOptions {
+  std::string rig_yaml;        // the rig configuration's text (generators:, hall_mcu:)
+  std::string rig_origin;      // its file name, for messages
+  std::string camera_address;  // GigE Vision camera, opened by address
+  std::string mcu_device;      // empty: the rig configuration's hall_mcu.device
+  double camera_frame_rate_hz = 10.0;
+  dataset::Recording plan;  // session.yaml + camera.yaml of the plan (no images)
+  std::string rig_id, mirror_id, note;
+  bool resume = false;
+  int input_fd = 0, output_fd = 1;  // the operator's terminal
+  orchestrator::ProgressFn progress;
+};
+// Runs (or resumes) the session into `out`. The journal keeps what a resume needs: the rig
+// configuration's text, the camera address, the MCU device.
+orchestrator::SessionResult RunLabAcquisition(const std::filesystem::path& out,
+                                              const LabAcquisitionOptions& options);
+// The options a lab session journalled (for `msmcal resume`): everything but the plan, the
+// terminal and the progress callback. Throws std::runtime_error naming the folder.
+LabAcquisitionOptions LabOptionsFromJournal(const std::filesystem::path& dir,
+                                            const std::string& config_yaml);
+// Reads a plan folder: session.yaml and camera.yaml as the interchange format defines them (the
+// frame lists name the images to take; none need exist). Throws naming the file and field.
+dataset::Recording ReadPlanFolder(const std::filesystem::path& dir);
+
 struct FinishOptions {
   bool skip_done = true;  // skip steps whose outputs exist (resume)
   bool echo = true;       // print the commands and their output

@@ -1,0 +1,131 @@
+#pragma once
+// The guided mode (issue 9): a RigOperator that tells the person at the rig what to do next, on
+// a terminal, and waits for the answer before the orchestrator goes on.
+//
+// For every operator action the orchestrator asks for (RigOperator::Prepare*), ConsoleOperator
+// prints a numbered instruction block (position in the session, what to mount or remove, the
+// drive mode, the triggers of the frame, which beams to unblock) followed by the prompt
+//   [Enter] ready  [r] repeat instructions  [q] abort
+// and reads one line from its input. Enter (an empty line) confirms; "r" prints the block again;
+// "q" — and the end of the input — throws OperatorAbort, which RunSession treats like any other
+// failure (generator outputs off, the abort recorded in the session log / journal).
+//
+// An optional inner RigOperator actually changes the rig once the operator confirmed (the demo's
+// SimulatedWorld); without one (the lab) the human does it, and ConsoleOperator itself decides
+// which frames show the new setup (FrameShowsCurrentSetup): see ConsoleOperatorOptions.
+//
+// The orchestrator's call order is: step-1 frames, PrepareHallRecording(background) (the mirror's
+// top frame removed; the recording starts right after the confirmation), then
+// PrepareHallRecording(actual) (top frame mounted) and the step-2 frames. When
+// OrchestratorOptions::mcu.device is empty the background call comes first instead (before the
+// rig check: the MCU's device is needed for it) and the background recording follows step 1
+// without another prompt; the instruction texts say which. The first call tells the order, and
+// the blocks are numbered "[k/N]" in it (N = 2 + step-1 frames + step-2 frames). A resumed session
+// skips the blocks of frames already recorded, keeping the numbers.
+//
+// Thread safety: Prepare* and FrameShowsCurrentSetup are called from the orchestrator's thread.
+
+#include <cstdint>
+#include <functional>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "processing/dataset/recording.h"
+#include "sessions/orchestrator/orchestrator.h"
+#include "sessions/orchestrator/rig_operator.h"
+
+namespace msmcal::orchestrator {
+
+// The operator answered 'q' at a prompt, or the input ended (EOF, closed terminal).
+class OperatorAbort : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+struct ConsoleOperatorOptions {
+  int input_fd = 0;   // lines typed by the operator (not owned, not closed)
+  int output_fd = 1;  // instructions and prompts (not owned, not closed)
+  // Optional, per step-1 pose index l: where the sliding plate goes, appended to the mount
+  // instruction ("about 35 mm from the mirror towards the source, tilted +12 deg").
+  std::vector<std::string> pose_hints;
+
+  // Lab only (no inner operator):
+  // The Hall MCU's serial device for both recordings (returned by PrepareHallRecording).
+  std::string mcu_device;
+  // The clock the camera driver stamps FrameInfo::host_timestamp_ns with, in ns (Aravis:
+  // CLOCK_REALTIME, see arv_buffer_get_system_timestamp; V4L2: CLOCK_MONOTONIC). Read when the
+  // operator confirms a setup.
+  std::function<int64_t()> host_clock_ns;
+  // A frame shows the confirmed setup when it reached the host at least this long after the
+  // confirmation: the host arrival time bounds the end of the exposure, so this must cover one
+  // exposure + transfer (frames in flight at the confirmation are discarded). Device timestamps
+  // are not used because the camera's clock is not tied to the host's.
+  int64_t settle_ns = 300'000'000;
+
+  // Empty when valid for the given mode (with or without an inner operator); otherwise names the
+  // field, its value and the constraint.
+  std::string Validate(bool has_inner) const;
+};
+
+// The instruction blocks (pure; what ConsoleOperator prints before each prompt). `number` and
+// `total` give the "[k/N]" position. Throws std::out_of_range for an index outside the plan.
+// before_step1: the background set-up is asked before step 1 (the recording follows step 1).
+std::string DescribeHallRecording(const dataset::Recording& plan, HallRun run, bool before_step1,
+                                  int number, int total);
+std::string DescribeStep1Frame(const dataset::Recording& plan, size_t index,
+                               const std::vector<std::string>& pose_hints, int number, int total);
+std::string DescribeStep2Frame(const dataset::Recording& plan, size_t index, int number, int total);
+
+inline constexpr const char* kConsolePrompt =
+    "[Enter] ready  [r] repeat instructions  [q] abort > ";
+
+class ConsoleOperator : public RigOperator {
+ public:
+  // `plan` and `inner` (may be null: lab) must outlive the operator. Throws std::invalid_argument
+  // when options.Validate(inner != nullptr) fails.
+  ConsoleOperator(const dataset::Recording& plan, ConsoleOperatorOptions options,
+                  RigOperator* inner);
+
+  void PrepareStep1Frame(size_t index) override;
+  void PrepareStep2Frame(size_t index) override;
+  // With an inner operator: its answer. Lab: host arrival time >= confirmation + settle_ns.
+  bool FrameShowsCurrentSetup(const camera::FrameInfo& info) const override;
+  std::string PrepareHallRecording(HallRun run) override;
+
+  int confirmations() const { return confirmations_; }  // setups confirmed so far
+  int total_steps() const { return total_; }            // instruction blocks in the plan
+
+ private:
+  // Prints `instructions` and the prompt until the operator confirms; throws OperatorAbort.
+  void Ask(const std::string& instructions);
+  void Write(const std::string& text) const;
+  // Decides the numbering on the first call (background asked first or after step 1).
+  void SeeFirstCall(bool is_background);
+  int Step1Number(size_t index) const;
+  // One line from the input without the newline; false at EOF.
+  bool ReadLine(std::string* line);
+
+  const dataset::Recording& plan_;
+  ConsoleOperatorOptions options_;
+  RigOperator* inner_;
+  int total_ = 0;
+  int confirmations_ = 0;
+  bool order_known_ = false;
+  bool background_first_ = false;
+  int64_t confirmed_ns_ = 0;
+  std::string pending_;  // bytes read past the last line
+};
+
+// Live quality figures: an observer that prints one line per gate decision (file, attempt,
+// boards found or not, dots found/expected, saturated %, accepted or the rejection reason, and
+// the running totals of final decisions). Not thread-safe (RunSession calls it from one thread).
+struct LiveTotals {
+  int accepted = 0;
+  int rejected = 0;  // final rejections
+  int retried = 0;   // non-final rejections (another attempt follows)
+};
+std::string FormatLiveFigures(const FrameReport& report, const LiveTotals& totals_after);
+FrameObserver MakeLiveFigures(std::function<void(const std::string& line)> print);
+
+}  // namespace msmcal::orchestrator

@@ -1,0 +1,306 @@
+// The guided console operator: instruction texts, the prompt protocol over a pipe (Enter, r, q,
+// EOF, unknown answers), delegation to the inner operator, the lab-mode frame freshness rule and
+// the live-figures lines.
+#include "sessions/orchestrator/console_operator.h"
+
+#include <fcntl.h>
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <string>
+#include <vector>
+
+namespace msmcal::orchestrator {
+namespace {
+
+// A small plan by hand: 3 beams, 2 poses + an identification frame, neutral / fast-only / scan.
+dataset::Recording SmallPlan() {
+  dataset::Recording p;
+  p.beams = {{1, dataset::BeamRole::kEstimate},
+             {2, dataset::BeamRole::kEstimate},
+             {3, dataset::BeamRole::kValidate}};
+  p.triggers = {{0, 0.010}, {1, 0.0525}, {2, 0.125}};
+  p.step1 = {{"step1/0000.png", 0, {1, 2, 3}},
+             {"step1/0001.png", 1, {1, 2, 3}},
+             {"step1/0002.png", 1, {2}}};
+  p.step2 = {{"step2/0000.png", dataset::Step2Kind::kNeutral, {}, {1, 2, 3}},
+             {"step2/0001.png", dataset::Step2Kind::kFastOnly, {0, 2}, {1, 2, 3}},
+             {"step2/0002.png", dataset::Step2Kind::kScan, {1}, {1, 2, 3}}};
+  return p;
+}
+
+// Records what the orchestrator's calls reached.
+class FakeRig : public RigOperator {
+ public:
+  void PrepareStep1Frame(size_t index) override { calls.push_back("s1:" + std::to_string(index)); }
+  void PrepareStep2Frame(size_t index) override { calls.push_back("s2:" + std::to_string(index)); }
+  bool FrameShowsCurrentSetup(const camera::FrameInfo& info) const override {
+    return info.frame_id == 7;
+  }
+  std::string PrepareHallRecording(HallRun run) override {
+    calls.push_back(std::string("hall:") + ToString(run));
+    return std::string("/dev/fake-") + ToString(run);
+  }
+  std::vector<std::string> calls;
+};
+
+// The operator's terminal: answers go into a pipe, output comes out of another.
+class Terminal {
+ public:
+  Terminal() {
+    EXPECT_EQ(::pipe(in_), 0);
+    EXPECT_EQ(::pipe(out_), 0);
+    ::fcntl(out_[0], F_SETFL, O_NONBLOCK);
+  }
+  ~Terminal() {
+    for (int fd : {in_[0], in_[1], out_[0], out_[1]})
+      if (fd >= 0) ::close(fd);
+  }
+  void Type(const std::string& s) {
+    ASSERT_EQ(::write(in_[1], s.data(), s.size()), ssize_t(s.size()));
+  }
+  void CloseInput() {
+    ::close(in_[1]);
+    in_[1] = -1;
+  }
+  // Everything written so far.
+  std::string Output() {
+    char buf[4096];
+    for (ssize_t n; (n = ::read(out_[0], buf, sizeof(buf))) > 0;) text_.append(buf, size_t(n));
+    return text_;
+  }
+  ConsoleOperatorOptions Options() const {
+    ConsoleOperatorOptions o;
+    o.input_fd = in_[0];
+    o.output_fd = out_[1];
+    return o;
+  }
+
+ private:
+  int in_[2] = {-1, -1};
+  int out_[2] = {-1, -1};
+  std::string text_;
+};
+
+size_t Count(const std::string& s, const std::string& what) {
+  size_t n = 0;
+  for (size_t p = s.find(what); p != std::string::npos; p = s.find(what, p + 1)) ++n;
+  return n;
+}
+
+TEST(ConsoleOperator, WholeSessionInOrderWithNumberedInstructions) {
+  const dataset::Recording plan = SmallPlan();
+  FakeRig rig;
+  Terminal term;
+  ConsoleOperatorOptions o = term.Options();
+  o.pose_hints = {"about 35 mm from the mirror", "about 100 mm from the mirror"};
+  ConsoleOperator op(plan, o, &rig);
+  EXPECT_EQ(op.total_steps(), 8);
+  term.Type(std::string(8, '\n'));  // all answers at once: lines are split correctly
+
+  EXPECT_EQ(op.PrepareHallRecording(HallRun::kBackground), "/dev/fake-background");
+  for (size_t i = 0; i < plan.step1.size(); ++i) op.PrepareStep1Frame(i);
+  EXPECT_EQ(op.PrepareHallRecording(HallRun::kActual), "/dev/fake-actual");
+  for (size_t i = 0; i < plan.step2.size(); ++i) op.PrepareStep2Frame(i);
+  EXPECT_EQ(op.confirmations(), 8);
+  EXPECT_EQ(rig.calls, (std::vector<std::string>{"hall:background", "s1:0", "s1:1", "s1:2",
+                                                 "hall:actual", "s2:0", "s2:1", "s2:2"}));
+
+  const std::string out = term.Output();
+  EXPECT_EQ(Count(out, kConsolePrompt), 8u);
+  for (int k = 1; k <= 8; ++k)
+    EXPECT_NE(out.find("[" + std::to_string(k) + "/8]"), std::string::npos) << k;
+  // Order: background (top frame off) before the first sliding plate, top frame on before step 2.
+  const size_t remove = out.find("Remove the mirror's top frame");
+  const size_t mount1 = out.find("Mount the sliding plate at pose 1 of 2 (about 35 mm");
+  const size_t move2 = out.find("Move the sliding plate to pose 2 of 2 (about 100 mm");
+  const size_t keep2 = out.find("Leave the sliding plate at pose 2 of 2");
+  const size_t top_on = out.find("Mount the mirror's top frame");
+  const size_t neutral = out.find("drives off");
+  ASSERT_NE(remove, std::string::npos) << out;
+  ASSERT_NE(mount1, std::string::npos) << out;
+  ASSERT_NE(move2, std::string::npos) << out;
+  ASSERT_NE(keep2, std::string::npos) << out;
+  ASSERT_NE(top_on, std::string::npos) << out;
+  ASSERT_NE(neutral, std::string::npos) << out;
+  EXPECT_LT(remove, mount1);
+  EXPECT_LT(mount1, move2);
+  EXPECT_LT(move2, keep2);
+  EXPECT_LT(keep2, top_on);
+  EXPECT_LT(top_on, neutral);
+  EXPECT_NE(out.find("MSM not mounted"), std::string::npos);
+  EXPECT_NE(out.find("Unblock beam 2 only; block beams 1 and 3 (identification frame"),
+            std::string::npos)
+      << out;
+  EXPECT_NE(out.find("Unblock beams 1, 2 and 3 (all beams)."), std::string::npos);
+  EXPECT_NE(out.find("fast axis driven, slow drive off"), std::string::npos);
+  EXPECT_NE(out.find("Laser pulses of triggers j = 0 and 2 (t = 10.000, 125.000 ms"),
+            std::string::npos)
+      << out;
+  EXPECT_NE(out.find("Laser pulses of trigger j = 1 (t = 52.500 ms"), std::string::npos) << out;
+}
+
+TEST(ConsoleOperator, BackgroundAskedAfterStepOneIsNumberedThere) {
+  const dataset::Recording plan = SmallPlan();
+  FakeRig rig;
+  Terminal term;
+  ConsoleOperator op(plan, term.Options(), &rig);
+  term.Type(std::string(8, '\n'));
+  for (size_t i = 0; i < plan.step1.size(); ++i) op.PrepareStep1Frame(i);
+  EXPECT_EQ(op.PrepareHallRecording(HallRun::kBackground), "/dev/fake-background");
+  EXPECT_EQ(op.PrepareHallRecording(HallRun::kActual), "/dev/fake-actual");
+  for (size_t i = 0; i < plan.step2.size(); ++i) op.PrepareStep2Frame(i);
+  const std::string out = term.Output();
+  const size_t first = out.find("[1/8] Step 1, frame 1 of 3");
+  const size_t last = out.find("[3/8] Step 1, frame 3 of 3");
+  const size_t background = out.find("[4/8] Step 1 done: background Hall recording");
+  const size_t actual = out.find("[5/8] Step 2 set-up");
+  const size_t s2 = out.find("[8/8] Step 2, frame 3 of 3, scan");
+  ASSERT_NE(first, std::string::npos) << out;
+  ASSERT_NE(last, std::string::npos) << out;
+  ASSERT_NE(background, std::string::npos) << out;
+  ASSERT_NE(actual, std::string::npos) << out;
+  ASSERT_NE(s2, std::string::npos) << out;
+  EXPECT_LT(last, background);
+  EXPECT_LT(out.find("Remove the mirror's top frame", background), actual);
+  EXPECT_LT(actual, s2);
+}
+
+TEST(ConsoleOperator, RepeatShowsTheSameInstructionsAgainAndUnknownAnswersAskAgain) {
+  const dataset::Recording plan = SmallPlan();
+  FakeRig rig;
+  Terminal term;
+  ConsoleOperator op(plan, term.Options(), &rig);
+  term.Type("r\nwhat\n  \n");  // repeat, unknown, blank (= Enter)
+  op.PrepareStep1Frame(2);
+  const std::string out = term.Output();
+  EXPECT_EQ(Count(out, "Step 1, frame 3 of 3 (step1/0002.png)"), 2u) << out;
+  EXPECT_EQ(Count(out, kConsolePrompt), 3u);
+  EXPECT_NE(out.find("unknown answer 'what'"), std::string::npos);
+  EXPECT_EQ(rig.calls, std::vector<std::string>{"s1:2"});
+}
+
+TEST(ConsoleOperator, QuitAndEndOfInputAbortBeforeTheRigIsTouched) {
+  const dataset::Recording plan = SmallPlan();
+  {
+    FakeRig rig;
+    Terminal term;
+    ConsoleOperator op(plan, term.Options(), &rig);
+    term.Type("q\n");
+    try {
+      op.PrepareStep2Frame(1);
+      FAIL() << "no abort";
+    } catch (const OperatorAbort& e) {
+      EXPECT_NE(std::string(e.what()).find("operator aborted"), std::string::npos);
+    }
+    EXPECT_TRUE(rig.calls.empty());
+    EXPECT_EQ(op.confirmations(), 0);
+  }
+  {
+    FakeRig rig;
+    Terminal term;
+    ConsoleOperator op(plan, term.Options(), &rig);
+    term.Type("\n");
+    term.CloseInput();
+    op.PrepareStep1Frame(0);
+    EXPECT_THROW(op.PrepareStep1Frame(1), OperatorAbort);
+    EXPECT_EQ(rig.calls, std::vector<std::string>{"s1:0"});
+  }
+}
+
+TEST(ConsoleOperator, DelegatesFreshnessToTheInnerOperator) {
+  const dataset::Recording plan = SmallPlan();
+  FakeRig rig;
+  Terminal term;
+  ConsoleOperator op(plan, term.Options(), &rig);
+  camera::FrameInfo info;
+  info.frame_id = 7;
+  EXPECT_TRUE(op.FrameShowsCurrentSetup(info));
+  info.frame_id = 8;
+  EXPECT_FALSE(op.FrameShowsCurrentSetup(info));
+}
+
+TEST(ConsoleOperator, LabModeAcceptsFramesArrivingAfterConfirmationPlusSettle) {
+  const dataset::Recording plan = SmallPlan();
+  Terminal term;
+  ConsoleOperatorOptions o = term.Options();
+  EXPECT_NE(o.Validate(false).find("mcu_device"), std::string::npos);
+  EXPECT_EQ(o.Validate(true), "");
+  o.mcu_device = "/dev/ttyACM0";
+  EXPECT_NE(o.Validate(false).find("host_clock_ns"), std::string::npos);
+  int64_t now_ns = 5'000'000'000;
+  o.host_clock_ns = [&] { return now_ns; };
+  o.settle_ns = 100'000'000;
+  EXPECT_EQ(o.Validate(false), "");
+  o.settle_ns = -1;
+  EXPECT_NE(o.Validate(false).find("settle_ns = -1"), std::string::npos);
+  o.settle_ns = 100'000'000;
+  EXPECT_THROW(ConsoleOperator(plan, term.Options(), nullptr), std::invalid_argument);
+
+  ConsoleOperator op(plan, o, nullptr);
+  term.Type("\n\n");
+  EXPECT_EQ(op.PrepareHallRecording(HallRun::kBackground), "/dev/ttyACM0");
+  now_ns = 9'000'000'000;
+  op.PrepareStep1Frame(0);
+  camera::FrameInfo info;
+  info.host_timestamp_ns = 9'000'000'000 + 99'999'999;  // in flight at the confirmation
+  EXPECT_FALSE(op.FrameShowsCurrentSetup(info));
+  info.host_timestamp_ns = 9'000'000'000 + 100'000'000;
+  EXPECT_TRUE(op.FrameShowsCurrentSetup(info));
+  info.host_timestamp_ns = 8'000'000'000;
+  EXPECT_FALSE(op.FrameShowsCurrentSetup(info));
+}
+
+TEST(ConsoleOperator, DescriptionsRejectIndicesOutsideThePlan) {
+  const dataset::Recording plan = SmallPlan();
+  EXPECT_THROW(DescribeStep1Frame(plan, 3, {}, 1, 1), std::out_of_range);
+  EXPECT_THROW(DescribeStep2Frame(plan, 3, 1, 1), std::out_of_range);
+}
+
+TEST(LiveFigures, OneLinePerDecisionWithFiguresReasonAndTotals) {
+  GateResult g;
+  g.accepted = false;
+  g.reason = "expected 3 dots, found 2";
+  g.dots_found = 2;
+  g.dots_expected = 3;
+  g.saturated_fraction = 0.0012;
+  g.boards = {vision::CheckerboardDetection{}, std::nullopt};
+  FrameReport r;
+  r.step = 1;
+  r.index = 2;
+  r.count = 7;
+  r.file = "step1/0002.png";
+  r.gate = &g;
+  std::vector<std::string> lines;
+  FrameObserver live = MakeLiveFigures([&](const std::string& l) { lines.push_back(l); });
+  live(r);  // attempt 1 rejected, another follows
+  r.attempt = 1;
+  r.final = true;
+  live(r);  // final rejection
+  g.accepted = true;
+  g.reason.clear();
+  g.dots_found = 3;
+  g.boards = {vision::CheckerboardDetection{}, vision::CheckerboardDetection{}};
+  r.index = 3;
+  r.file = "step1/0003.png";
+  r.attempt = 0;
+  r.accepted = true;
+  live(r);
+  ASSERT_EQ(lines.size(), 3u);
+  EXPECT_NE(lines[0].find("step1/0002.png (step 1, 3/7, attempt 1)"), std::string::npos)
+      << lines[0];
+  EXPECT_NE(lines[0].find("sliding board found, world board NOT found"), std::string::npos);
+  EXPECT_NE(lines[0].find("dots 2/3"), std::string::npos);
+  EXPECT_NE(lines[0].find("saturated 0.12%"), std::string::npos) << lines[0];
+  EXPECT_NE(lines[0].find("retry: expected 3 dots, found 2"), std::string::npos);
+  EXPECT_NE(lines[0].find("totals: 0 accepted, 0 rejected, 1 retried"), std::string::npos);
+  EXPECT_NE(lines[1].find("REJECTED: expected 3 dots"), std::string::npos);
+  EXPECT_NE(lines[1].find("totals: 0 accepted, 1 rejected, 1 retried"), std::string::npos);
+  EXPECT_NE(lines[2].find("dots 3/3"), std::string::npos);
+  EXPECT_NE(lines[2].find("ACCEPTED | totals: 1 accepted, 1 rejected, 1 retried"),
+            std::string::npos)
+      << lines[2];
+}
+
+}  // namespace
+}  // namespace msmcal::orchestrator
