@@ -1,0 +1,137 @@
+// The guided console operator in lab mode (no simulated world behind it): the person at the rig
+// is this test's "operator" thread, which reads the instructions from the console's output pipe,
+// changes the simulated rig as told (as a person moves the sliding plate) and presses Enter. The
+// operator decides which frames show the new setup from the host arrival time alone (the
+// Aravis driver's CLOCK_REALTIME stamp), so this checks that rule against the real camera path:
+// every frame the session keeps is, pixel for pixel, the render of the setup it was taken for.
+#include <fcntl.h>
+#include <gtest/gtest.h>
+#include <poll.h>
+#include <unistd.h>
+
+#include <ctime>
+#include <filesystem>
+#include <opencv2/imgcodecs.hpp>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "sessions/orchestrator/console_operator.h"
+#include "sessions/orchestrator/demo_rig.h"
+#include "sessions/orchestrator/orchestrator.h"
+
+namespace msmcal::orchestrator {
+namespace {
+
+namespace fs = std::filesystem;
+
+int64_t RealtimeNs() {
+  timespec ts{};
+  clock_gettime(CLOCK_REALTIME, &ts);
+  return static_cast<int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
+}
+
+// The console's RigOperator calls go to the console; only the Hall device comes from the demo rig
+// (it serves each recording from its own mock MCU, where the lab has one device for both).
+class LabRig : public RigOperator {
+ public:
+  LabRig(ConsoleOperator& console, SimulatedWorld& world) : console_(console), world_(world) {}
+  void PrepareStep1Frame(size_t index) override { console_.PrepareStep1Frame(index); }
+  void PrepareStep2Frame(size_t index) override { console_.PrepareStep2Frame(index); }
+  bool FrameShowsCurrentSetup(const camera::FrameInfo& info) const override {
+    return console_.FrameShowsCurrentSetup(info);
+  }
+  std::string PrepareHallRecording(HallRun run) override {
+    (void)console_.PrepareHallRecording(run);
+    return world_.PrepareHallRecording(run);
+  }
+
+ private:
+  ConsoleOperator& console_;
+  SimulatedWorld& world_;
+};
+
+TEST(LabOperator, AFrameCountsOnlyAfterTheOperatorConfirmedTheSetup) {
+  DemoRigOptions ro;
+  ro.sim.seed = 3;
+  ro.sim.step1.poses = 4;
+  ro.sim.step2.neutral_frames = 1;
+  ro.sim.step2.fast_only_frames = 2;
+  ro.sim.triggers.max_triggers = 18;
+  ro.sim.hall.background_duration_s = 2.0;
+  ro.sim.hall.actual_duration_s = 2.0;
+  DemoRig rig(ro);
+  const dataset::Recording plan = rig.Plan();
+  const fs::path dir = fs::path(::testing::TempDir()) / "lab_operator";
+  fs::remove_all(dir);
+
+  int answers[2], console_out[2];
+  ASSERT_EQ(::pipe(answers), 0);
+  ASSERT_EQ(::pipe(console_out), 0);
+  ConsoleOperatorOptions co;
+  co.input_fd = answers[0];
+  co.output_fd = console_out[1];
+  co.mcu_device = "/dev/unused";  // LabRig hands out the demo rig's devices
+  co.host_clock_ns = RealtimeNs;
+  ConsoleOperator console(plan, co, nullptr);
+  LabRig lab(console, rig.world());
+
+  // The operator: the order of the physical actions is the plan's (step-1 frames, background
+  // set-up, actual set-up, step-2 frames); each is done when its prompt appears, then Enter.
+  std::vector<std::string> actions;
+  for (size_t i = 0; i < plan.step1.size(); ++i) actions.push_back("s1:" + std::to_string(i));
+  actions.push_back("background");
+  actions.push_back("actual");
+  for (size_t i = 0; i < plan.step2.size(); ++i) actions.push_back("s2:" + std::to_string(i));
+  std::string transcript;
+  size_t prompts = 0;
+  std::thread person([&] {
+    std::string pending;
+    char buf[4096];
+    while (prompts < actions.size()) {
+      pollfd p{console_out[0], POLLIN, 0};
+      if (::poll(&p, 1, 60'000) <= 0) return;  // the session failed; the test below says why
+      const ssize_t n = ::read(console_out[0], buf, sizeof(buf));
+      if (n <= 0) return;
+      pending.append(buf, static_cast<size_t>(n));
+      transcript.append(buf, static_cast<size_t>(n));
+      size_t at;
+      while ((at = pending.find(kConsolePrompt)) != std::string::npos) {
+        pending.erase(0, at + std::string(kConsolePrompt).size());
+        const std::string& a = actions[prompts++];
+        if (a.rfind("s1:", 0) == 0) rig.world().PrepareStep1Frame(std::stoul(a.substr(3)));
+        if (a.rfind("s2:", 0) == 0) rig.world().PrepareStep2Frame(std::stoul(a.substr(3)));
+        ASSERT_EQ(::write(answers[1], "\n", 1), 1);
+      }
+    }
+  });
+
+  OrchestratorOptions options = rig.MakeOrchestratorOptions(dir);
+  options.run_kind = "lab";
+  SessionResult result;
+  try {
+    result = RunSession(options, plan, lab, nullptr);
+  } catch (const std::exception& e) {
+    ::close(console_out[1]);
+    person.join();
+    FAIL() << e.what() << "\nconsole:\n" << transcript;
+  }
+  person.join();
+  for (int fd : {answers[0], answers[1], console_out[0], console_out[1]}) ::close(fd);
+
+  EXPECT_EQ(prompts, actions.size());
+  EXPECT_EQ(console.confirmations(), static_cast<int>(actions.size()));
+  ASSERT_EQ(result.frames.size(), plan.step1.size() + plan.step2.size());
+  for (const auto& f : result.frames) EXPECT_TRUE(f.accepted) << f.file << ": " << f.reason;
+  for (size_t i = 0; i < plan.step1.size(); ++i) {
+    const cv::Mat grabbed = cv::imread((dir / plan.step1[i].file).string(), cv::IMREAD_UNCHANGED);
+    ASSERT_FALSE(grabbed.empty()) << plan.step1[i].file;
+    EXPECT_EQ(cv::norm(grabbed, rig.sim().RenderStep1Frame(i), cv::NORM_INF), 0.0)
+        << plan.step1[i].file << " is not the render of its own setup";
+  }
+  EXPECT_NE(transcript.find("sliding plate"), std::string::npos) << transcript;
+  EXPECT_TRUE(result.safe_state_confirmed);
+}
+
+}  // namespace
+}  // namespace msmcal::orchestrator
