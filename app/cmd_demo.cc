@@ -8,8 +8,6 @@
 // `--guided`: the operator at the rig is prompted on this terminal for every set-up (the guided
 // mode, docs/guided.md): the answers go to a ConsoleOperator in front of the simulated world;
 // live gate figures are printed and annotated previews written to DIR/previews.
-#include <unistd.h>
-
 #include <CLI/CLI.hpp>
 #include <chrono>
 #include <cstdio>
@@ -24,9 +22,7 @@
 #include "app/session_flow.h"
 #include "mocks/rig/sim_options.h"
 #include "sessions/interchange/interchange_io.h"
-#include "sessions/orchestrator/console_operator.h"
 #include "sessions/orchestrator/orchestrator.h"
-#include "sessions/orchestrator/preview.h"
 #include "sessions/orchestrator/report.h"
 #include "sessions/store/session_store.h"
 #include "sessions/store/transfer.h"
@@ -47,42 +43,6 @@ struct DemoArgs {
 
 // --guided: a ConsoleOperator on stdin/stdout in front of the simulated world (with the
 // simulator's sliding-plate poses as hints), live gate figures and previews of accepted frames.
-void AddGuidedMode(DemoAcquisitionOptions& acq) {
-  const sim::Step1Options s1 = acq.sim.step1;
-  acq.make_operator = [s1](orchestrator::RigOperator& world, const dataset::Recording& plan) {
-    orchestrator::ConsoleOperatorOptions co;
-    co.input_fd = STDIN_FILENO;
-    co.output_fd = STDOUT_FILENO;
-    for (int l = 0; l < s1.poses; ++l) {
-      const double mm = s1.nearest_mm +
-                        (s1.poses > 1 ? l * (s1.farthest_mm - s1.nearest_mm) / (s1.poses - 1) : 0);
-      char hint[160];
-      std::snprintf(hint, sizeof(hint),
-                    "about %.0f mm from the mirror position towards the source, tilted %+.0f deg",
-                    mm, (l % 2 == 0 ? 1 : -1) * s1.tilt_deg);
-      co.pose_hints.push_back(hint);
-    }
-    return std::make_unique<orchestrator::ConsoleOperator>(plan, co, &world);
-  };
-  const dataset::BoardSpec world{acq.sim.world_board.cols, acq.sim.world_board.rows,
-                                 acq.sim.world_board.square_mm};
-  const dataset::BoardSpec sliding{acq.sim.sliding_board.cols, acq.sim.sliding_board.rows,
-                                   acq.sim.sliding_board.square_mm};
-  acq.adjust_options = [world, sliding](orchestrator::OrchestratorOptions& o) {
-    auto print = [](const std::string& line) {
-      std::printf("%s\n", line.c_str());
-      std::fflush(stdout);
-    };
-    auto live = orchestrator::MakeLiveFigures(print);
-    auto previews = orchestrator::MakePreviewWriter(
-        o.out_dir, world, sliding, [print](const std::string& w) { print("warning: " + w); });
-    o.on_frame = [before = o.on_frame, live, previews](const orchestrator::FrameReport& r) {
-      if (before) before(r);
-      live(r);
-      previews(r);
-    };
-  };
-}
 
 void RunDemo(const DemoArgs& args) {
   const auto start = std::chrono::steady_clock::now();
@@ -111,7 +71,7 @@ void RunDemo(const DemoArgs& args) {
     std::fflush(stdout);
     notes.push_back(line);
   };
-  if (args.guided) AddGuidedMode(acq);
+  if (args.guided) MakeGuided(acq);
   const orchestrator::SessionResult session = RunDemoAcquisition(out, acq);
   size_t rejected = 0;
   for (const auto& f : session.frames) rejected += f.accepted ? 0 : 1;

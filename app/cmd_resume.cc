@@ -1,8 +1,8 @@
-// `msmcal resume DIR [--camera-address ADDR]`: continues a session that was interrupted (Ctrl-C, a
-// crash, SIGKILL, power loss) from the last step its journal (DIR/session.db) records: frames
-// already recorded are kept and not taken again, a Hall recording cut short is kept aside and taken
-// again, then the steps after acquisition (solve, Hall calibration) that have no output yet are
-// run.
+// `msmcal resume DIR [--camera-address ADDR] [--guided]`: continues a session that was interrupted
+// (Ctrl-C, a crash, SIGKILL, power loss) from the last step its journal (DIR/session.db) records:
+// frames already recorded are kept and not taken again, a Hall recording cut short is kept aside
+// and taken again, then the steps after acquisition (solve, Hall calibration) that have no output
+// yet are run.
 #include <CLI/CLI.hpp>
 #include <chrono>
 #include <cstdio>
@@ -27,6 +27,7 @@ namespace fs = std::filesystem;
 struct ResumeArgs {
   std::string dir;
   std::string camera_address = "127.0.0.1";
+  bool guided = false;
 };
 
 void RunResume(const ResumeArgs& args) {
@@ -60,6 +61,7 @@ void RunResume(const ResumeArgs& args) {
     acq.camera_address = args.camera_address;
     acq.resume = true;
     acq.progress = progress;
+    if (args.guided) MakeGuided(acq);
     (void)RunDemoAcquisition(dir, acq);
   } else if (journal.run_kind == "lab") {
     LabAcquisitionOptions lab = LabOptionsFromJournal(dir, journal.run_config_yaml);
@@ -91,6 +93,9 @@ void AddResumeCommands(CLI::App& app) {
   resume->add_option("DIR", args->dir, "Session folder (holds session.db)")->required();
   resume->add_option("--camera-address", args->camera_address,
                      "Address the mock GigE Vision camera serves on (demo sessions)");
+  resume->add_flag("--guided", args->guided,
+                   "Demo sessions: prompt on this terminal for every set-up (lab sessions always "
+                   "do)");
   resume->callback([args] { RunResume(*args); });
 }
 

@@ -1,5 +1,6 @@
 #include "app/session_flow.h"
 
+#include <unistd.h>
 #include <yaml-cpp/yaml.h>
 
 #include <cstdio>
@@ -45,6 +46,43 @@ bool RunSelf(const std::string& args, std::vector<std::string>* notes, bool echo
     notes->push_back("msmcal " + args +
                      (ok ? ": ok" : ": FAILED (status " + std::to_string(rc) + ")"));
   return ok;
+}
+
+void MakeGuided(DemoAcquisitionOptions& acq) {
+  const sim::Step1Options s1 = acq.sim.step1;
+  acq.make_operator = [s1](orchestrator::RigOperator& world, const dataset::Recording& plan) {
+    orchestrator::ConsoleOperatorOptions co;
+    co.input_fd = STDIN_FILENO;
+    co.output_fd = STDOUT_FILENO;
+    for (int l = 0; l < s1.poses; ++l) {
+      const double mm = s1.nearest_mm +
+                        (s1.poses > 1 ? l * (s1.farthest_mm - s1.nearest_mm) / (s1.poses - 1) : 0);
+      char hint[160];
+      std::snprintf(hint, sizeof(hint),
+                    "about %.0f mm from the mirror position towards the source, tilted %+.0f deg",
+                    mm, (l % 2 == 0 ? 1 : -1) * s1.tilt_deg);
+      co.pose_hints.push_back(hint);
+    }
+    return std::make_unique<orchestrator::ConsoleOperator>(plan, co, &world);
+  };
+  const dataset::BoardSpec world{acq.sim.world_board.cols, acq.sim.world_board.rows,
+                                 acq.sim.world_board.square_mm};
+  const dataset::BoardSpec sliding{acq.sim.sliding_board.cols, acq.sim.sliding_board.rows,
+                                   acq.sim.sliding_board.square_mm};
+  acq.adjust_options = [world, sliding](orchestrator::OrchestratorOptions& o) {
+    auto print = [](const std::string& line) {
+      std::printf("%s\n", line.c_str());
+      std::fflush(stdout);
+    };
+    auto live = orchestrator::MakeLiveFigures(print);
+    auto previews = orchestrator::MakePreviewWriter(
+        o.out_dir, world, sliding, [print](const std::string& w) { print("warning: " + w); });
+    o.on_frame = [before = o.on_frame, live, previews](const orchestrator::FrameReport& r) {
+      if (before) before(r);
+      live(r);
+      previews(r);
+    };
+  };
 }
 
 orchestrator::SessionResult RunDemoAcquisition(const fs::path& out,

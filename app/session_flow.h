@@ -41,6 +41,10 @@ struct DemoAcquisitionOptions {
   std::string note = "msmcal demo";
 };
 
+// Guided demo: a ConsoleOperator on stdin/stdout in front of the simulated world (pose hints from
+// the simulator's step-1 options), live quality figures and annotated previews (previews/).
+void MakeGuided(DemoAcquisitionOptions& acq);
+
 // Starts the demo rig for `options.sim`, runs (or resumes) the session into `out` with run_kind
 // "demo" (the simulator options are journalled, so `msmcal resume` can rebuild the rig), and
 // writes the simulator's truth to out/truth. Throws what RunSession throws.
