@@ -1,0 +1,236 @@
+// `msmcal sweep PLAN.yaml --out DIR` / `msmcal sweep --resume DIR` (issue 9, sweep mode): one
+// simulated calibration session per point of a YAML sweep plan (sessions/sweep/sweep_plan.h,
+// docs/sweep.md), each on the demo rig through the real drivers and the orchestrator, then solved
+// and Hall-calibrated (FinishSession), unattended: a failing point is recorded with its reason and
+// the sweep goes on. Re-running the same command on an existing DIR continues the sweep: finished
+// points are skipped, a point killed mid-acquisition is resumed from its journal (nothing
+// recorded is taken again), a point killed while solving only finishes. Progress: one line per
+// event (a redrawn status line on a terminal); at the end a summary table (also DIR/summary.csv).
+#include <sys/ioctl.h>
+#include <unistd.h>
+
+#include <CLI/CLI.hpp>
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <memory>
+#include <mutex>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "app/command_registry.h"
+#include "app/session_flow.h"
+#include "mocks/rig/rig_simulator.h"
+#include "mocks/rig/truth_io.h"
+#include "sessions/interchange/interchange_io.h"
+#include "sessions/orchestrator/orchestrator.h"
+#include "sessions/orchestrator/report.h"
+#include "sessions/store/session_store.h"
+#include "sessions/sweep/sweep_plan.h"
+#include "sessions/sweep/sweep_runner.h"
+
+namespace msmcal::app {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct SweepArgs {
+  std::string plan;
+  std::string out;
+  std::string resume;
+  std::string camera_address = "127.0.0.1";
+  int threads = 2;
+  bool list = false;
+};
+
+// Shortens a progress line to `width` characters: drops the elapsed time, abbreviates
+// "rejected", then shortens the
+// point's values ("[...]"), then elides the middle of the line.
+std::string FitWidth(const std::string& line, size_t width) {
+  std::string s = line;
+  const size_t elapsed = s.find(" | elapsed ");
+  if (s.size() > width && elapsed != std::string::npos) {
+    const size_t next = s.find(" | ", elapsed + 3);
+    if (next != std::string::npos) s.erase(elapsed, next - elapsed);
+  }
+  const size_t rejected = s.find(" rejected | ");
+  if (s.size() > width && rejected != std::string::npos) s.replace(rejected, 9, " rej");
+  const size_t open = s.find(" ["), close = s.find("] ");
+  if (s.size() > width && open != std::string::npos && close != std::string::npos &&
+      close > open + 2) {
+    const size_t label = close - open - 2, excess = s.size() - width;
+    const size_t keep = label > excess + 3 ? label - excess - 3 : 0;
+    s = s.substr(0, open + 2 + keep) + "..." + s.substr(close);
+  }
+  if (s.size() <= width) return s;
+  const size_t head = width / 3;
+  return s.substr(0, head) + "..." + s.substr(s.size() - (width - head - 3));
+}
+
+// Prints progress lines: on a terminal, transient lines redraw one status line ('\r'); otherwise
+// every line is printed as it comes (scripts and tests read them).
+class ProgressPrinter {
+ public:
+  ProgressPrinter() : tty_(::isatty(::fileno(stdout)) == 1) {}
+  void Print(const std::string& line, bool transient) {
+    std::lock_guard<std::mutex> lock(mu_);
+    if (tty_) {
+      std::string shown = line;
+      // A transient line must fit one terminal row, or '\r' cannot redraw it.
+      winsize ws{};
+      if (transient && ::ioctl(::fileno(stdout), TIOCGWINSZ, &ws) == 0 && ws.ws_col > 40)
+        shown = FitWidth(line, static_cast<size_t>(ws.ws_col) - 1);
+      const size_t shown_width = shown.size();
+      if (shown.size() < width_) shown += std::string(width_ - shown.size(), ' ');
+      std::printf("\r%s", shown.c_str());
+      width_ = transient ? shown_width : 0;
+      if (!transient) std::printf("\n");
+    } else {
+      std::printf("%s\n", line.c_str());
+    }
+    std::fflush(stdout);
+  }
+  // Ends a pending status line before other output.
+  void Break() {
+    std::lock_guard<std::mutex> lock(mu_);
+    if (tty_ && width_ > 0) std::printf("\n");
+    width_ = 0;
+  }
+
+ private:
+  std::mutex mu_;
+  bool tty_;
+  size_t width_ = 0;
+};
+
+sweep::PointFolderState InspectPoint(const fs::path& folder) {
+  sweep::PointFolderState s;
+  s.folder_exists = fs::exists(folder);
+  s.folder_empty = !s.folder_exists || fs::is_empty(folder);
+  s.journal_exists = fs::exists(folder / store::kSessionDbName);
+  if (s.journal_exists) {
+    try {
+      s.session_complete = orchestrator::ReadSessionJournal(folder).complete;
+    } catch (const std::exception&) {
+      s.session_complete = false;  // resume says what is wrong with it (the point fails)
+    }
+  }
+  const fs::path results = folder / "results";
+  s.results_complete = fs::exists(results / "summary.json") &&
+                       fs::exists(results / "hall_model.yaml") &&
+                       fs::exists(results / "hall_poses.csv");
+  return s;
+}
+
+void RunSweepCommand(const SweepArgs& args) {
+  if (!args.resume.empty() && (!args.plan.empty() || !args.out.empty()))
+    throw std::runtime_error("sweep: give either PLAN.yaml --out DIR or --resume DIR, not both");
+  if (args.resume.empty() && (args.plan.empty() || args.out.empty()))
+    throw std::runtime_error("sweep: give PLAN.yaml and --out DIR (or --resume DIR)");
+  const fs::path dir = fs::absolute(args.resume.empty() ? args.out : args.resume);
+  fs::path plan_file = args.plan;
+  if (!args.resume.empty()) {
+    plan_file = dir / "sweep.yaml";
+    if (!fs::exists(plan_file))
+      throw std::runtime_error(dir.string() + ": no sweep.yaml here: not a sweep folder");
+  }
+  const sweep::SweepPlan plan = sweep::LoadSweepPlan(plan_file);
+  const std::vector<sweep::SweepPoint> points = sweep::ExpandPoints(plan);
+  std::printf("msmcal sweep: %zu points (%zu axes x %d repeats) into %s\n", points.size(),
+              plan.axes.size(), plan.repeats, dir.string().c_str());
+  if (args.list) {
+    for (const auto& p : points)
+      std::printf("  %s  seed %llu\n", p.name.c_str(), static_cast<unsigned long long>(p.sim.seed));
+    return;
+  }
+  std::fflush(stdout);
+
+  ProgressPrinter printer;
+  const auto start = std::chrono::steady_clock::now();
+  sweep::SweepHooks hooks;
+  hooks.now_s = [start] {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  };
+  hooks.print = [&printer](const std::string& line, bool transient) {
+    printer.Print(line, transient);
+  };
+  hooks.inspect = InspectPoint;
+  hooks.acquire = [&args](const sweep::SweepPoint& point, const fs::path& folder, bool resume,
+                          const std::function<void(const std::string&)>& log_line) {
+    DemoAcquisitionOptions acq;
+    acq.sim = point.sim;
+    acq.camera_address = args.camera_address;
+    acq.resume = resume;
+    acq.progress = log_line;
+    acq.note = "msmcal sweep point " + point.name;
+    (void)RunDemoAcquisition(folder, acq);
+  };
+  hooks.finish = [&args](const sweep::SweepPoint& point, const fs::path& folder) -> std::string {
+    // Killed between the end of the acquisition and the truth being written: write it now (the
+    // simulator is deterministic in its options).
+    if (!fs::exists(folder / "truth"))
+      sim::WriteTruth(folder, sim::MakeTruth(sim::RigSimulator(point.sim)));
+    FinishOptions fo;
+    fo.skip_done = true;
+    fo.echo = false;
+    fo.threads = args.threads;
+    std::vector<std::string> notes;
+    const FinishResult r = FinishSession(folder, fo, &notes);
+    try {  // the point's report, as `msmcal demo` writes it
+      const orchestrator::SessionReport report = orchestrator::BuildSessionReport(folder, notes);
+      interchange::WriteFileAtomically(folder / "report.html", report.html);
+    } catch (const std::exception& e) {
+      if (r.ok()) return std::string("report: ") + e.what();
+    }
+    if (r.ok()) return "";
+    for (const auto& n : notes)
+      if (n.find("FAILED") != std::string::npos) return n;
+    return r.solved ? "Hall calibration not done" : "solve not done";
+  };
+
+  hooks.augment = [](const fs::path& folder, sweep::PointFigures* f) {
+    if (!fs::exists(folder / "truth") || !fs::exists(folder / "results")) return;
+    try {
+      const orchestrator::SessionReport r = orchestrator::BuildSessionReport(folder, {});
+      if (r.have_planes) f->normal_rms_vs_truth_deg = r.normal_rms_vs_truth_deg;
+      if (r.have_hall_vs_truth) {
+        f->hall_vs_truth_alpha_deg = r.hall_rms_vs_truth[0];
+        f->hall_vs_truth_beta_deg = r.hall_rms_vs_truth[1];
+        f->hall_vs_truth_trans_mm = r.hall_rms_vs_truth[2];
+      }
+    } catch (const std::exception&) {
+      // The summary never stops the sweep; the figures stay empty.
+    }
+  };
+  const sweep::SweepOutcome outcome = sweep::RunSweep(plan, dir, hooks);
+  printer.Break();
+  std::printf("\nsweep summary (%s):\n%s", (dir / "summary.csv").string().c_str(),
+              outcome.table.c_str());
+  std::printf("total %.1f s\n", hooks.now_s());
+  std::fflush(stdout);
+  if (outcome.failed > 0) throw CLI::RuntimeError(1);
+}
+
+void AddSweepCommands(CLI::App& app) {
+  auto args = std::make_shared<SweepArgs>();
+  auto* cmd = app.add_subcommand(
+      "sweep",
+      "Run one simulated calibration session per point of a YAML sweep plan, unattended and "
+      "resumable (re-run the same command, or --resume DIR, to continue)");
+  cmd->add_option("PLAN", args->plan, "Sweep plan (docs/sweep.md, config/sweep-example.yaml)");
+  cmd->add_option("--out", args->out,
+                  "Sweep folder: created, or continued when it holds the same sweep");
+  cmd->add_option("--resume", args->resume, "Continue the sweep in this folder (its sweep.yaml)");
+  cmd->add_option("--camera-address", args->camera_address,
+                  "Address the mock GigE Vision camera serves on (port 3956)");
+  cmd->add_option("--threads", args->threads, "Solver threads per point")->check(CLI::Range(1, 64));
+  cmd->add_flag("--list", args->list, "List the points and their folder names, run nothing");
+  cmd->callback([args] { RunSweepCommand(*args); });
+}
+
+}  // namespace
+
+MSMCAL_REGISTER_COMMANDS(/*order=*/9, AddSweepCommands);
+
+}  // namespace msmcal::app

@@ -1,0 +1,76 @@
+#pragma once
+// Progress of a sweep: the orchestrator's log lines read as events, the ETA estimate and the
+// one-line progress format (issue 9: "a progress line (step, ETA, frames, dropped readings)").
+// Pure: times are passed in (seconds of an injected monotonic clock).
+
+#include <cstddef>
+#include <cstdint>
+#include <map>
+#include <optional>
+#include <string>
+
+namespace msmcal::sweep {
+
+// One orchestrator log line ("step 1: frame 3/15 step1/0002.png accepted", "Hall: background 2000
+// readings, 10 clock edges, 0 lost (end of data)", ...) as an event. A leading "[  12.345 s] "
+// (session_log.txt) is ignored.
+struct LogEvent {
+  enum class Kind { kOther, kFrame, kHallStart, kHallDone, kSessionWritten };
+  Kind kind = Kind::kOther;
+  int step = 0;                     // kFrame: 1 or 2
+  size_t index = 0, count = 0;      // kFrame: 1-based frame index and frames in the step
+  std::string file;                 // kFrame: "step1/0002.png"
+  bool accepted = false;            // kFrame
+  bool from_journal = false;        // kFrame: recorded before a resume and kept ("... (kept)")
+  std::string recording;            // kHallStart / kHallDone: "background" or "actual"
+  uint64_t readings = 0, lost = 0;  // kHallDone
+};
+LogEvent ParseLogLine(const std::string& line);
+
+// Figures of a point's session from its session_log.txt (all runs of a resumed session appended):
+// the last decision per frame file and the last completed count per Hall recording.
+struct SessionLogFigures {
+  size_t frames_accepted = 0, frames_rejected = 0;
+  uint64_t hall_readings = 0, hall_lost = 0;
+  bool hall_seen = false;  // at least one completed Hall recording was logged
+};
+SessionLogFigures ParseSessionLog(const std::string& text);
+
+// "42 s", "3:05", "1:02:03"; "?" when negative or not finite.
+std::string FormatDuration(double seconds);
+
+// ETA from the durations of points run from start to end (resumed or skipped points are not
+// representative and are not added).
+class EtaEstimator {
+ public:
+  void AddPointDuration(double seconds);
+  size_t samples() const { return samples_; }
+  // Seconds left for `points_after_current` points plus the current one, which has run for
+  // `current_elapsed_s` (infinity: the current point is over); nullopt before the first sample.
+  std::optional<double> EtaSeconds(size_t points_after_current, double current_elapsed_s) const;
+
+ private:
+  double sum_s_ = 0;
+  size_t samples_ = 0;
+};
+
+// The state of the sweep shown in one progress line.
+struct ProgressSnapshot {
+  size_t point = 0, points = 0;  // 1-based point number, total
+  std::string label;             // the point's values ("fast.frequency_hz=205 r0")
+  std::string step;              // "step 1 frame 3/15", "Hall background", "solve", ...
+  std::string event;             // what just happened ("accepted", "REJECTED", "done", ...)
+  size_t frames_accepted = 0, frames_rejected = 0;  // this point so far
+  uint64_t lost = 0;                                // Hall readings lost at this point so far
+  double elapsed_s = 0;                             // since the sweep run started
+  std::optional<double> eta_s;                      // whole sweep
+};
+// "sweep 2/4 [fast.frequency_hz=205 r0] step 1 frame 3/15 accepted | frames 3 ok 0 rejected |
+// lost 0 | elapsed 1:23 | ETA 2:10" (one line, no newline).
+std::string FormatProgressLine(const ProgressSnapshot& s);
+
+// Updates `s` (step, event, frame and loss counts) from one orchestrator log line; returns false
+// when the line is not a progress event (nothing changed).
+bool ApplyLogLine(const std::string& line, ProgressSnapshot* s);
+
+}  // namespace msmcal::sweep

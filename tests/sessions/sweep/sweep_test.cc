@@ -1,0 +1,466 @@
+// Sweep mode (issue 9): plan parsing and its errors (file, line, key), point expansion and
+// folder names, the resume decision, the state file, progress lines / ETA, the summary, and the
+// runner over fake acquisition hooks (unattended failure handling, resume, plan mismatch).
+#include <gtest/gtest.h>
+
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+#include <set>
+#include <sstream>
+#include <string>
+
+#include "sessions/sweep/sweep_plan.h"
+#include "sessions/sweep/sweep_progress.h"
+#include "sessions/sweep/sweep_runner.h"
+#include "sessions/sweep/sweep_state.h"
+#include "sessions/sweep/sweep_summary.h"
+
+namespace msmcal::sweep {
+namespace {
+
+namespace fs = std::filesystem;
+
+fs::path FreshDir(const std::string& name) {
+  const fs::path dir = fs::path(::testing::TempDir()) / ("sweep_" + name);
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  return dir;
+}
+
+void WriteText(const fs::path& f, const std::string& text) {
+  fs::create_directories(f.parent_path());
+  std::ofstream(f) << text;
+}
+
+std::string ReadText(const fs::path& f) {
+  std::ifstream in(f);
+  std::stringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+const char* kPlan = R"(note: two by two
+base:
+  seed: 10
+  step1:
+    poses: 4
+axes:
+  mirror.fast.frequency_hz: [200, 205]
+  triggers.max_triggers: [18, 30]
+repeats: 2
+)";
+
+// Expects ParseSweepPlan(text) to throw with a message containing every part.
+void ExpectPlanError(const std::string& text, const std::vector<std::string>& parts) {
+  try {
+    (void)ParseSweepPlan(text, "plan.yaml", ".");
+    ADD_FAILURE() << "no error for:\n" << text;
+  } catch (const std::runtime_error& e) {
+    const std::string msg = e.what();
+    for (const auto& p : parts)
+      EXPECT_NE(msg.find(p), std::string::npos) << msg << "\n  lacks: " << p;
+  }
+}
+
+TEST(SweepPlan, ExpandsTheProductTimesRepeatsInnermostFastest) {
+  const SweepPlan plan = ParseSweepPlan(kPlan, "plan.yaml", ".");
+  ASSERT_EQ(plan.axes.size(), 2u);
+  EXPECT_EQ(plan.axes[0].line, 7);
+  EXPECT_EQ(plan.repeats, 2);
+  EXPECT_EQ(plan.note, "two by two");
+  const auto points = ExpandPoints(plan);
+  ASSERT_EQ(points.size(), 8u);
+  // Default order: axes in file order, repeats innermost.
+  EXPECT_EQ(points[0].name, "p001-fast.frequency_hz=200-triggers.max_triggers=18-r0");
+  EXPECT_EQ(points[1].name, "p002-fast.frequency_hz=200-triggers.max_triggers=18-r1");
+  EXPECT_EQ(points[2].name, "p003-fast.frequency_hz=200-triggers.max_triggers=30-r0");
+  EXPECT_EQ(points[7].name, "p008-fast.frequency_hz=205-triggers.max_triggers=30-r1");
+  EXPECT_EQ(points[1].Label(), "fast.frequency_hz=200 triggers.max_triggers=18 r1");
+  std::set<std::string> names;
+  for (const auto& p : points) {
+    names.insert(p.name);
+    EXPECT_EQ(p.sim.step1.poses, 4);  // base applies to every point
+    EXPECT_EQ(p.sim.seed, 10u + static_cast<uint64_t>(p.repeat));
+    EXPECT_DOUBLE_EQ(p.sim.mirror.fast.frequency_hz, std::stod(p.values[0].second));
+    EXPECT_EQ(p.sim.triggers.max_triggers, std::stoi(p.values[1].second));
+    EXPECT_DOUBLE_EQ(p.sim.mirror.slow.frequency_hz, 5.0);  // untouched default
+  }
+  EXPECT_EQ(names.size(), points.size());
+}
+
+TEST(SweepPlan, OrderPutsRepeatsOutermostAndReordersAxes) {
+  std::string text = kPlan;
+  text += "order: [repeats, triggers.max_triggers, mirror.fast.frequency_hz]\n";
+  const auto points = ExpandPoints(ParseSweepPlan(text, "plan.yaml", "."));
+  ASSERT_EQ(points.size(), 8u);
+  for (size_t i = 0; i < 4; ++i) EXPECT_EQ(points[i].repeat, 0);
+  EXPECT_EQ(points[0].values[0].first, "triggers.max_triggers");  // values in nesting order
+  EXPECT_EQ(points[1].values[1].second, "205");  // the innermost axis varies fastest
+  EXPECT_EQ(points[2].values[0].second, "30");
+  EXPECT_EQ(points[4].repeat, 1);
+}
+
+TEST(SweepPlan, ListValuedAxesAndBaseConfigRelativeToThePlan) {
+  const fs::path dir = FreshDir("base_config");
+  WriteText(dir / "cfg" / "tiny.yaml", "step1:\n  poses: 5\nseed: 7\n");
+  WriteText(dir / "plan.yaml",
+            "base_config: cfg/tiny.yaml\nbase:\n  seed: 8\naxes:\n"
+            "  geometry.board_aim_mm: [[110, 135], [100, 140]]\n");
+  const SweepPlan plan = LoadSweepPlan(dir / "plan.yaml");
+  const auto points = ExpandPoints(plan);
+  ASSERT_EQ(points.size(), 2u);
+  EXPECT_EQ(points[0].sim.step1.poses, 5);  // from base_config
+  EXPECT_EQ(points[0].sim.seed, 8u);        // base: over base_config
+  EXPECT_DOUBLE_EQ(points[1].sim.geometry.board_aim_mm[1], 140.0);
+  EXPECT_EQ(points[1].name, "p002-geometry.board_aim_mm=100_140-r0");
+}
+
+TEST(SweepPlan, ErrorsNameTheFileTheLineAndTheKey) {
+  ExpectPlanError("axes:\n  mirror.fast.frequency_hz: [200]\nrepeat: 2\n",
+                  {"plan.yaml:3", "unknown key 'repeat'"});
+  ExpectPlanError("axes:\n  mirror.fast.frequncy_hz: [200]\n",
+                  {"plan.yaml:2", "axes.mirror.fast.frequncy_hz", "unknown simulator option"});
+  ExpectPlanError("axes:\n  mirror.fast: [200]\n", {"plan.yaml:2", "axes.mirror.fast"});
+  ExpectPlanError("axes:\n  mirror.fast.frequency_hz: [200, fast]\n",
+                  {"plan.yaml:2", "axes.mirror.fast.frequency_hz", "expected a number"});
+  ExpectPlanError("axes:\n  mirror.fast.frequency_hz: 200\n", {"plan.yaml:2", "non-empty list"});
+  ExpectPlanError("base:\n  step1:\n    posez: 3\n",
+                  {"plan.yaml:3", "base.step1.posez", "unknown simulator option"});
+  ExpectPlanError("base:\n  render:\n    colour: 3\n", {"plan.yaml:3", "base.render.colour"});
+  ExpectPlanError("repeats: 0\n", {"plan.yaml:1", "repeats", "out of range"});
+  ExpectPlanError("axes:\n  seed: [1, 2]\n  step1.poses: [3]\norder: [seed]\n",
+                  {"plan.yaml:4", "order", "step1.poses", "missing"});
+  ExpectPlanError("axes:\n  seed: [1, 1]\n", {"plan.yaml:2", "axes.seed", "listed twice"});
+  // A value the simulator refuses (Validate) names the axis and the field.
+  ExpectPlanError("axes:\n  step1.poses: [3, -1]\n", {"plan.yaml:2", "step1.poses = -1"});
+  ExpectPlanError("axes: [1, 2\n", {"plan.yaml:"});
+  ExpectPlanError("base_config: missing.yaml\n", {"plan.yaml:1", "base_config", "missing.yaml"});
+}
+
+TEST(SweepPlan, TheDocumentedExamplePlanParses) {
+  const char* env = std::getenv("MSMCAL_SOURCE_DIR");  // set by ctest
+  const fs::path src = env ? fs::path(env) : fs::path(__FILE__).parent_path() / "../../..";
+  const SweepPlan plan = LoadSweepPlan(src / "config" / "sweep-example.yaml");
+  const auto points = ExpandPoints(plan);
+  EXPECT_EQ(points.size(), 16u);
+  EXPECT_EQ(plan.repeat_level, 0u);
+  EXPECT_EQ(points[8].repeat, 1);  // repeats outermost
+  EXPECT_EQ(points[8].sim.seed, 2u);
+}
+
+TEST(SweepPlan, FolderNamesAreSanitisedAndBounded) {
+  EXPECT_EQ(PointFolderName(2, 1, {{"a.b/c", "x y"}}), "p003-a.b_c=xy-r1");
+  std::string long_value(300, '9');
+  const std::string n = PointFolderName(41, 0, {{"step1.poses", long_value}});
+  EXPECT_LE(n.size(), 120u);
+  EXPECT_EQ(n.substr(0, 5), "p042-");
+  EXPECT_EQ(n.substr(n.size() - 3), "-r0");
+  EXPECT_EQ(ShortAxisName("mirror.fast.frequency_hz"), "fast.frequency_hz");
+  EXPECT_EQ(ShortAxisName("seed"), "seed");
+}
+
+TEST(SweepPlan, SelfContainedCopyRoundTripsAndChangesAreNamed) {
+  std::string text = kPlan;
+  text += "order: [triggers.max_triggers, repeats, mirror.fast.frequency_hz]\n";
+  const SweepPlan plan = ParseSweepPlan(text, "plan.yaml", ".");
+  const SweepPlan copy = ParseSweepPlan(SweepPlanToYaml(plan), "sweep.yaml", "/nonexistent");
+  EXPECT_EQ(ComparePlans(copy, plan), "");
+  EXPECT_EQ(copy.repeat_level, 1u);
+  EXPECT_EQ(copy.note, plan.note);
+
+  std::string changed = text;
+  changed.replace(changed.find("poses: 4"), 8, "poses: 5");
+  const std::string diff = ComparePlans(copy, ParseSweepPlan(changed, "new.yaml", "."));
+  EXPECT_NE(diff.find("simulator options differ"), std::string::npos) << diff;
+  EXPECT_NE(diff.find("poses"), std::string::npos) << diff;
+  std::string more = text;
+  more.replace(more.find("[18, 30]"), 8, "[18, 30, 40]");
+  EXPECT_NE(ComparePlans(copy, ParseSweepPlan(more, "new.yaml", ".")).find("12"),
+            std::string::npos);
+}
+
+TEST(SweepState, ResumeDecisionFollowsWhatIsOnDisk) {
+  PointFolderState s;
+  EXPECT_EQ(DecidePointAction(s), PointAction::kAcquire);  // absent
+  s.folder_exists = true;
+  EXPECT_EQ(DecidePointAction(s), PointAction::kAcquire);  // empty
+  s.folder_empty = false;
+  EXPECT_EQ(DecidePointAction(s), PointAction::kSetAside);  // files, no journal
+  s.journal_exists = true;
+  EXPECT_EQ(DecidePointAction(s), PointAction::kResume);  // killed mid-acquisition
+  s.session_complete = true;
+  EXPECT_EQ(DecidePointAction(s), PointAction::kFinish);  // killed while solving
+  s.results_complete = true;
+  EXPECT_EQ(DecidePointAction(s), PointAction::kSkip);
+}
+
+TEST(SweepState, RoundTripsAndNamesMalformedFields) {
+  const fs::path dir = FreshDir("state");
+  EXPECT_TRUE(ReadSweepState(dir / "absent.json").points.empty());
+  SweepState s;
+  s.points["p001"] = {PointStatus::kDone, "", 12.5, 1, false};
+  s.points["p002"] = {PointStatus::kFailed, "camera: timeout, \"x\"", 3.0, 2, false};
+  WriteSweepState(dir / "state.json", s);
+  const SweepState r = ReadSweepState(dir / "state.json");
+  ASSERT_EQ(r.points.size(), 2u);
+  EXPECT_EQ(r.points.at("p002").status, PointStatus::kFailed);
+  EXPECT_EQ(r.points.at("p002").reason, "camera: timeout, \"x\"");
+  EXPECT_EQ(r.points.at("p002").attempts, 2);
+  EXPECT_DOUBLE_EQ(r.points.at("p001").duration_s, 12.5);
+  WriteText(dir / "bad.json", R"({"points": {"p001": {"status": "half"}}})");
+  try {
+    (void)ReadSweepState(dir / "bad.json");
+    ADD_FAILURE();
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("points.p001.status"), std::string::npos) << e.what();
+  }
+}
+
+TEST(SweepProgress, ParsesOrchestratorLines) {
+  LogEvent e = ParseLogLine("[   3.250 s] step 2: frame 4/9 step2/0003.png REJECTED: 2 dots");
+  EXPECT_EQ(e.kind, LogEvent::Kind::kFrame);
+  EXPECT_EQ(e.step, 2);
+  EXPECT_EQ(e.index, 4u);
+  EXPECT_EQ(e.count, 9u);
+  EXPECT_EQ(e.file, "step2/0003.png");
+  EXPECT_FALSE(e.accepted);
+  e = ParseLogLine("Hall: background 2000 readings, 10 clock edges, 3 lost (end of data)");
+  EXPECT_EQ(e.kind, LogEvent::Kind::kHallDone);
+  EXPECT_EQ(e.recording, "background");
+  EXPECT_EQ(e.readings, 2000u);
+  EXPECT_EQ(e.lost, 3u);
+  e = ParseLogLine("step 1: frame 2/3 step1/0001.png rejected before the resume (kept)");
+  EXPECT_EQ(e.kind, LogEvent::Kind::kFrame);
+  EXPECT_FALSE(e.accepted);
+  EXPECT_TRUE(e.from_journal);
+  EXPECT_EQ(ParseLogLine("Hall: actual recording on /dev/pts/3 during step 2").kind,
+            LogEvent::Kind::kHallStart);
+  EXPECT_EQ(ParseLogLine("rig check passed").kind, LogEvent::Kind::kOther);
+
+  // A resumed session's log: the last decision per file and per recording count.
+  const SessionLogFigures f = ParseSessionLog(
+      "[ 1.0 s] step 1: frame 1/2 step1/0000.png accepted\n"
+      "[ 1.1 s] step 1: frame 2/2 step1/0001.png REJECTED: blur\n"
+      "[ 2.0 s] Hall: background 100 readings, 1 clock edges, 4 lost (stopped)\n"
+      "[ 0.1 s] step 1: frame 1/2 step1/0000.png accepted before the resume (kept)\n"
+      "[ 0.2 s] step 1: frame 2/2 step1/0001.png accepted\n"
+      "[ 0.5 s] Hall: background 2000 readings, 10 clock edges, 1 lost (end of data)\n"
+      "[ 0.9 s] Hall: actual 2500 readings, 12 clock edges, 2 lost (stopped)\n");
+  EXPECT_EQ(f.frames_accepted, 2u);
+  EXPECT_EQ(f.frames_rejected, 0u);
+  EXPECT_EQ(f.hall_lost, 3u);
+  EXPECT_EQ(f.hall_readings, 4500u);
+}
+
+TEST(SweepProgress, EtaAndTheProgressLine) {
+  EXPECT_EQ(FormatDuration(42.4), "42 s");
+  EXPECT_EQ(FormatDuration(185), "3:05");
+  EXPECT_EQ(FormatDuration(3723), "1:02:03");
+  EXPECT_EQ(FormatDuration(-1), "?");
+  EtaEstimator eta;
+  EXPECT_FALSE(eta.EtaSeconds(3, 0).has_value());
+  eta.AddPointDuration(100);
+  eta.AddPointDuration(200);
+  EXPECT_DOUBLE_EQ(*eta.EtaSeconds(2, 50), 100.0 + 300.0);  // mean 150: 100 left + 2 x 150
+  EXPECT_DOUBLE_EQ(*eta.EtaSeconds(0, 400), 0.0);
+  EXPECT_DOUBLE_EQ(*eta.EtaSeconds(2, std::numeric_limits<double>::infinity()), 300.0);
+
+  ProgressSnapshot s;
+  s.point = 2;
+  s.points = 4;
+  s.label = "fast.frequency_hz=205 r0";
+  s.step = "start";
+  EXPECT_TRUE(ApplyLogLine("step 1: frame 3/15 step1/0002.png accepted", &s));
+  EXPECT_FALSE(ApplyLogLine("rig check passed", &s));
+  EXPECT_TRUE(ApplyLogLine("Hall: background 2000 readings, 10 clock edges, 5 lost (end)", &s));
+  EXPECT_TRUE(ApplyLogLine("step 2: frame 1/8 step2/0000.png accepted", &s));
+  s.elapsed_s = 83;
+  s.eta_s = 130;
+  EXPECT_EQ(FormatProgressLine(s),
+            "sweep 2/4 [fast.frequency_hz=205 r0] step 2 frame 1/8 accepted | frames 2 ok 0 "
+            "rejected | lost 5 | elapsed 1:23 | ETA 2:10");
+  s.eta_s.reset();
+  EXPECT_NE(FormatProgressLine(s).find("| ETA ?"), std::string::npos);
+}
+
+TEST(SweepSummary, ReadsFiguresAndWritesTheTable) {
+  const fs::path dir = FreshDir("summary");
+  WriteText(dir / "session_log.txt",
+            "[ 1.0 s] step 1: frame 1/1 step1/0000.png accepted\n"
+            "[ 2.0 s] step 2: frame 1/2 step2/0000.png accepted\n"
+            "[ 2.1 s] step 2: frame 2/2 step2/0001.png REJECTED: x\n"
+            "[ 3.0 s] Hall: actual 10 readings, 1 clock edges, 2 lost (stopped)\n");
+  WriteText(dir / "results" / "summary.json",
+            R"({"mirror_poses": {"validation_rms_deg": 0.0123, "validation_rms_px": 0.5,
+                "baseline_validation_rms_deg": 0.05}})");
+  WriteText(dir / "results" / "hall_model.yaml",
+            "format: msmcal-hall-model/1\nmodel: sine\ndelta_t_s: 0.00055\n"
+            "test_rms: {alpha_deg: 0.08, beta_deg: 0.07, trans_mm: 0.1}\n");
+  const PointFigures f = ReadPointFigures(dir);
+  EXPECT_EQ(f.frames_accepted, 2u);
+  EXPECT_EQ(f.frames_rejected, 1u);
+  EXPECT_EQ(f.hall_lost.value_or(99), 2u);
+  EXPECT_DOUBLE_EQ(f.validation_rms_deg.value_or(0), 0.0123);
+  EXPECT_EQ(f.hall_model, "sine");
+  EXPECT_DOUBLE_EQ(f.hall_delta_t_s.value_or(0), 0.00055);
+  EXPECT_DOUBLE_EQ(f.hall_rms_beta_deg.value_or(0), 0.07);
+  EXPECT_FALSE(ReadPointFigures(dir / "absent").validation_rms_deg.has_value());
+
+  const SweepPlan plan =
+      ParseSweepPlan("axes:\n  mirror.fast.frequency_hz: [200, 205]\n", "plan.yaml", ".");
+  const auto points = ExpandPoints(plan);
+  std::vector<SummaryRow> rows = {
+      {points[0], {PointStatus::kDone, "", 61, 1, false}, f},
+      {points[1], {PointStatus::kFailed, "rig, \"bad\"", 5, 1, false}, {}}};
+  const std::string csv = SummaryCsv(plan, rows);
+  std::istringstream in(csv);
+  std::string header, row1, row2;
+  std::getline(in, header);
+  std::getline(in, row1);
+  std::getline(in, row2);
+  EXPECT_EQ(header,
+            "point,mirror.fast.frequency_hz,repeat,seed,status,reason,frames_accepted,"
+            "frames_rejected,hall_lost,validation_rms_deg,validation_rms_px,baseline_rms_deg,"
+            "normal_rms_vs_truth_deg,hall_model,hall_rms_alpha_deg,hall_rms_beta_deg,"
+            "hall_rms_trans_mm,hall_delta_t_ms,hall_vs_truth_alpha_deg,hall_vs_truth_beta_deg,"
+            "hall_vs_truth_trans_mm,duration_s");
+  EXPECT_EQ(row1,
+            "p001-fast.frequency_hz=200-r0,200,0,1,done,,2,1,2,0.01230,0.500,0.05000,,sine,0.0800,"
+            "0.0700,0.1000,0.5500,,,,61.0");
+  EXPECT_EQ(row2.substr(0, row2.find(",0,0,")),
+            "p002-fast.frequency_hz=205-r0,205,0,1,failed,\"rig, \"\"bad\"\"\"");
+  const std::string table = SummaryTable(plan, rows);
+  EXPECT_NE(table.find("2 points: 1 done, 1 failed, 0 not run"), std::string::npos) << table;
+  EXPECT_NE(table.find("p002-fast.frequency_hz=205-r0 failed: rig, \"bad\""), std::string::npos);
+}
+
+// Fake rig for the runner: a point's "acquisition" writes a journal marker, a log and frames;
+// "finish" writes results. Points can be told to fail.
+struct FakeRig {
+  double clock_s = 0;
+  std::vector<std::string> printed;
+  std::vector<std::string> calls;  // "acquire p001 resume=0", "finish p001"
+  std::set<std::string> fail_acquire, fail_finish;
+
+  SweepHooks Hooks() {
+    SweepHooks h;
+    h.now_s = [this] { return clock_s; };
+    h.print = [this](const std::string& line, bool) { printed.push_back(line); };
+    h.inspect = [](const fs::path& folder) {
+      PointFolderState s;
+      s.folder_exists = fs::exists(folder);
+      s.folder_empty = !s.folder_exists || fs::is_empty(folder);
+      s.journal_exists = fs::exists(folder / "session.db");
+      s.session_complete = fs::exists(folder / "session.yaml");
+      s.results_complete = fs::exists(folder / "results" / "summary.json");
+      return s;
+    };
+    h.acquire = [this](const SweepPoint& p, const fs::path& folder, bool resume,
+                       const std::function<void(const std::string&)>& log) {
+      calls.push_back("acquire " + p.name.substr(0, 4) + " resume=" + std::to_string(resume));
+      fs::create_directories(folder);
+      WriteText(folder / "session.db", "journal");
+      std::ofstream logf(folder / "session_log.txt", std::ios::app);
+      for (int i = 1; i <= 2; ++i) {
+        const std::string line = "step 1: frame " + std::to_string(i) + "/2 step1/000" +
+                                 std::to_string(i - 1) + ".png accepted";
+        logf << "[ 0.0 s] " << line << "\n";
+        log(line);
+        clock_s += 10;
+      }
+      if (fail_acquire.count(p.name.substr(0, 4)))
+        throw std::runtime_error("camera: no frame\nsecond line");
+      WriteText(folder / "session.yaml", "complete");
+    };
+    h.finish = [this](const SweepPoint& p, const fs::path& folder) -> std::string {
+      calls.push_back("finish " + p.name.substr(0, 4));
+      clock_s += 5;
+      if (fail_finish.count(p.name.substr(0, 4))) return "solve failed";
+      WriteText(folder / "results" / "summary.json",
+                R"({"mirror_poses": {"validation_rms_deg": 0.01}})");
+      return "";
+    };
+    return h;
+  }
+};
+
+TEST(SweepRunner, GoesOnAfterAFailureAndResumesWithoutRedoingWork) {
+  const fs::path dir = FreshDir("runner") / "out";
+  const SweepPlan plan =
+      ParseSweepPlan("axes:\n  triggers.max_triggers: [18, 24, 30, 36]\n", "plan.yaml", ".");
+  FakeRig rig;
+  rig.fail_acquire = {"p002"};
+  rig.fail_finish = {"p003"};
+  // p004 was killed mid-acquisition by an earlier run: its journal exists, no session.yaml.
+  const auto points = ExpandPoints(plan);
+  WriteText(dir / points[3].name / "session.db", "journal");
+  WriteText(dir / "sweep.yaml", SweepPlanToYaml(plan));
+  const SweepOutcome first = RunSweep(plan, dir, rig.Hooks());
+  EXPECT_EQ(first.done, 2u);
+  EXPECT_EQ(first.failed, 2u);
+  EXPECT_EQ(rig.calls,
+            (std::vector<std::string>{"acquire p001 resume=0", "finish p001",
+                                      "acquire p002 resume=0", "acquire p003 resume=0",
+                                      "finish p003", "acquire p004 resume=1", "finish p004"}));
+  EXPECT_EQ(first.rows[1].record.reason, "camera: no frame (...)");
+  EXPECT_EQ(first.rows[2].record.reason, "solve failed");
+  EXPECT_EQ(first.rows[0].figures.frames_accepted, 2u);
+  EXPECT_DOUBLE_EQ(first.rows[0].record.duration_s, 25.0);
+  // Progress lines: ETA unknown before the first finished point, then from its duration.
+  bool saw_unknown = false, saw_eta = false;
+  for (const auto& l : rig.printed) {
+    if (l.find("sweep 1/4") == 0 && l.find("ETA ?") != std::string::npos) saw_unknown = true;
+    if (l.find("sweep 2/4") == 0 && l.find("step 1 frame 1/2 accepted") != std::string::npos &&
+        l.find("ETA") != std::string::npos && l.find("ETA ?") == std::string::npos)
+      saw_eta = true;
+  }
+  EXPECT_TRUE(saw_unknown);
+  EXPECT_TRUE(saw_eta);
+  EXPECT_EQ(rig.printed.back().substr(0, 9), "sweep 4/4");
+  EXPECT_NE(rig.printed.back().find("| ETA 0 s"), std::string::npos) << rig.printed.back();
+  const std::string csv = ReadText(dir / "summary.csv");
+  EXPECT_NE(csv.find("failed,camera: no frame (...)"), std::string::npos) << csv;
+
+  // Second run: done points are skipped, the failed ones continue from what is on disk.
+  rig.calls.clear();
+  rig.fail_acquire.clear();
+  rig.fail_finish.clear();
+  const SweepOutcome second = RunSweep(plan, dir, rig.Hooks());
+  EXPECT_EQ(second.done, 4u);
+  EXPECT_EQ(rig.calls,
+            (std::vector<std::string>{"acquire p002 resume=1", "finish p002", "finish p003"}));
+  EXPECT_EQ(second.rows[0].record.attempts, 1);
+  EXPECT_TRUE(second.rows[0].record.skipped_last_run);
+  EXPECT_EQ(second.rows[1].record.attempts, 2);
+  EXPECT_NE(second.table.find("4 points: 4 done, 0 failed"), std::string::npos);
+  const SweepState state = ReadSweepState(dir / "sweep_state.json");
+  EXPECT_EQ(state.points.at(points[2].name).status, PointStatus::kDone);
+}
+
+TEST(SweepRunner, RefusesAChangedPlanOrAForeignFolderAndSetsAsideJournalFreeFolders) {
+  const fs::path base = FreshDir("runner_refuse");
+  const SweepPlan plan = ParseSweepPlan("axes:\n  seed: [1, 2]\n", "plan.yaml", ".");
+  FakeRig rig;
+  const auto points = ExpandPoints(plan);
+  // A point folder with files but no journal (killed before the journal existed).
+  WriteText(base / "a" / "sweep.yaml", SweepPlanToYaml(plan));
+  WriteText(base / "a" / points[0].name / "session_log.txt", "[ 0.0 s] session started\n");
+  (void)RunSweep(plan, base / "a", rig.Hooks());
+  EXPECT_TRUE(fs::exists(base / "a" / (points[0].name + ".set-aside-1") / "session_log.txt"));
+  EXPECT_TRUE(fs::exists(base / "a" / points[0].name / "results" / "summary.json"));
+
+  const SweepPlan other = ParseSweepPlan("axes:\n  seed: [1, 3]\n", "other.yaml", ".");
+  try {
+    (void)RunSweep(other, base / "a", rig.Hooks());
+    ADD_FAILURE();
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("holds a different sweep"), std::string::npos) << e.what();
+  }
+  WriteText(base / "b" / "x.txt", "x");
+  EXPECT_THROW((void)RunSweep(plan, base / "b", rig.Hooks()), std::runtime_error);
+}
+
+}  // namespace
+}  // namespace msmcal::sweep
