@@ -1,5 +1,6 @@
 #include "app/session_flow.h"
 
+#include <sys/wait.h>
 #include <unistd.h>
 #include <yaml-cpp/yaml.h>
 
@@ -31,20 +32,42 @@ std::string ShellQuote(const std::string& s) {
   return q + "'";
 }
 
-bool RunSelf(const std::string& args, std::vector<std::string>* notes, bool echo) {
+bool RunSelf(const std::string& args, std::vector<std::string>* notes, bool echo,
+             const fs::path& log_file) {
   const std::string exe = fs::read_symlink("/proc/self/exe").string();
   std::string cmd = ShellQuote(exe) + " " + args;
   if (echo) {
     std::printf("\n$ msmcal %s\n", args.c_str());
+  } else if (!log_file.empty()) {
+    if (std::FILE* f = std::fopen(log_file.c_str(), "a")) {
+      std::fprintf(f, "$ msmcal %s\n", args.c_str());
+      std::fclose(f);
+    }
+    cmd += " >>" + ShellQuote(log_file.string()) + " 2>&1";
   } else {
     cmd += " >/dev/null 2>&1";
   }
   std::fflush(stdout);
   const int rc = std::system(cmd.c_str());
   const bool ok = rc == 0;
-  if (notes)
-    notes->push_back("msmcal " + args +
-                     (ok ? ": ok" : ": FAILED (status " + std::to_string(rc) + ")"));
+  if (notes) {
+    std::string note = "msmcal " + args + ": ok";
+    if (!ok) {
+      note = "msmcal " + args + ": FAILED (" +
+             (WIFEXITED(rc) ? "exit status " + std::to_string(WEXITSTATUS(rc))
+                            : "status " + std::to_string(rc)) +
+             ")";
+      // The child's last error line says why (spdlog "[error] ..." or "error: ...").
+      if (!echo && !log_file.empty()) {
+        std::ifstream in(log_file);
+        std::string line, last_error;
+        while (std::getline(in, line))
+          if (line.find("error") != std::string::npos) last_error = line;
+        if (!last_error.empty()) note += ": " + last_error;
+      }
+    }
+    notes->push_back(note);
+  }
   return ok;
 }
 
@@ -216,6 +239,7 @@ FinishResult FinishSession(const fs::path& dir, const FinishOptions& options,
                            std::vector<std::string>* notes) {
   FinishResult r;
   const fs::path results = dir / "results";
+  const fs::path log = dir / "finish_log.txt";  // the children's output when not echoed
   const std::string d = ShellQuote(dir.string());
   std::unique_ptr<store::SessionStore> journal;
   const store::SystemClock clock;
@@ -234,14 +258,14 @@ FinishResult FinishSession(const fs::path& dir, const FinishOptions& options,
   if (!r.solved) {
     step("solve", store::StepState::kRunning);
     r.solved = RunSelf("solve " + d + " --threads " + std::to_string(options.threads), notes,
-                       options.echo);
+                       options.echo, log);
     step("solve", r.solved ? store::StepState::kDone : store::StepState::kFailed);
   }
   if (r.solved) {
     r.hall_calibrated = skip(results / "hall_model.yaml", "hall calibrate");
     if (!r.hall_calibrated) {
       step("hall_calibration", store::StepState::kRunning);
-      r.hall_calibrated = RunSelf("hall calibrate " + d, notes, options.echo);
+      r.hall_calibrated = RunSelf("hall calibrate " + d, notes, options.echo, log);
       if (!r.hall_calibrated) step("hall_calibration", store::StepState::kFailed);
     }
     if (r.hall_calibrated) {
@@ -251,7 +275,7 @@ FinishResult FinishSession(const fs::path& dir, const FinishOptions& options,
             RunSelf("hall predict " + ShellQuote((results / "hall_model.yaml").string()) + " " +
                         ShellQuote((dir / "hall" / "actual.csv").string()) + " " +
                         ShellQuote((results / "hall_poses.csv").string()),
-                    notes, options.echo);
+                    notes, options.echo, log);
       step("hall_calibration",
            r.hall_predicted ? store::StepState::kDone : store::StepState::kFailed);
     }

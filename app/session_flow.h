@@ -21,8 +21,11 @@ namespace msmcal::app {
 std::string ShellQuote(const std::string& s);
 
 // Runs this executable with `args` (already quoted); true on exit status 0. With `echo`, prints
-// "$ msmcal <args>" first. Appends "msmcal <args>: ok|FAILED (status N)" to `notes` (if given).
-bool RunSelf(const std::string& args, std::vector<std::string>* notes, bool echo = true);
+// "$ msmcal <args>" and lets the child print; otherwise the child's output is appended to
+// `log_file` (discarded when empty). Appends "msmcal <args>: ok" or "msmcal <args>: FAILED (exit
+// status N): <the child's last error line from log_file>" to `notes` (if given).
+bool RunSelf(const std::string& args, std::vector<std::string>* notes, bool echo = true,
+             const std::filesystem::path& log_file = {});
 
 struct DemoAcquisitionOptions {
   sim::SimOptions sim;
@@ -81,7 +84,7 @@ dataset::Recording ReadPlanFolder(const std::filesystem::path& dir);
 
 struct FinishOptions {
   bool skip_done = true;  // skip steps whose outputs exist (resume)
-  bool echo = true;       // print the commands and their output
+  bool echo = true;       // print the commands and their output; else into DIR/finish_log.txt
   int threads = 2;
 };
 struct FinishResult {
