@@ -138,6 +138,7 @@ std::string FormatTableTwo(const hall::HallCalibrationResult& r, const hall::Hal
                   m.test_rms_std[2], m.delta_t_mean_s * 1e3, m.kind == r.best ? "  <- best" : "");
     s << line;
   }
+  for (const auto& skipped : r.skipped_models) s << "left out: " << skipped << "\n";
   s << "paper (sine): 0.083 +- 0.040 deg, 0.069 +- 0.040 deg, 0.10 +- 0.08 mm\n";
   return s.str();
 }

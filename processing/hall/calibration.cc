@@ -111,6 +111,7 @@ HallCalibrationResult CalibrateHall(const HallCalibrationInput& in, const HallCa
   std::vector<std::vector<Eigen::Vector3d>> test_rms(o.models.size()), train_rms(o.models.size());
   std::vector<std::vector<double>> dts(o.models.size());
   Mapped a_train, a_test, b_train, b_test;
+  std::vector<bool> usable(o.models.size(), true);
   for (int rep = 0; rep < o.repetitions; ++rep) {
     std::vector<size_t> idx(n);
     std::iota(idx.begin(), idx.end(), 0);
@@ -124,14 +125,31 @@ HallCalibrationResult CalibrateHall(const HallCalibrationInput& in, const HallCa
     const FieldFunction f_train = [&](double t) { return fg_train.Value(t); };
     const FieldFunction f_test = [&](double t) { return fg_test.Value(t); };
     for (size_t m = 0; m < o.models.size(); ++m) {
-      const HallFitResult fitted = FitHallModel(o.models[m], train, f_train, fit);
+      if (!usable[m]) continue;
+      HallFitResult fitted;
+      try {
+        fitted = FitHallModel(o.models[m], train, f_train, fit);
+      } catch (const std::invalid_argument& e) {
+        // Too many parameters for a training split: the comparison goes on without the model.
+        usable[m] = false;
+        r.skipped_models.push_back(std::string(ToString(o.models[m])) + ": " + e.what() + " (" +
+                                   std::to_string(train.size()) + " poses per training split)");
+        continue;
+      }
       train_rms[m].push_back(fitted.train_rms);
       test_rms[m].push_back(EvaluateRms(fitted.model, test, f_test));
       dts[m].push_back(fitted.model.delta_t_s);
     }
   }
+  if (std::none_of(usable.begin(), usable.end(), [](bool u) { return u; })) {
+    std::string why;
+    for (const auto& s : r.skipped_models) why += "; " + s;
+    throw std::invalid_argument("CalibrateHall: no model can be fitted with " + std::to_string(n) +
+                                " mirror poses" + why);
+  }
   double best_score = 1e300;
   for (size_t m = 0; m < o.models.size(); ++m) {
+    if (!usable[m]) continue;
     ModelStats s;
     s.kind = o.models[m];
     const double reps = static_cast<double>(o.repetitions);

@@ -67,7 +67,12 @@ struct ModelStats {
 struct HallCalibrationResult {
   TimeBase actual_time_base;
   TimeBase background_time_base;
-  std::vector<ModelStats> table;  // one per options.models, in that order
+  // One per options.models that could be fitted, in that order. A model with more parameters
+  // than the poses of a training split can determine is left out and named in skipped_models
+  // ("cubic: needs more than 20 poses, 11 per training split"); when no model is left,
+  // CalibrateHall throws.
+  std::vector<ModelStats> table;
+  std::vector<std::string> skipped_models;
   HallModelKind best = HallModelKind::kLinear;  // lowest mean test RMS (normalised per output)
   HallFitResult final_fit;                      // best model refitted on every pose and reading
   Foreground foreground;                        // from every reading

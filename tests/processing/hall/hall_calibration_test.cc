@@ -68,6 +68,35 @@ TEST(HallModel, TableTwoProtocolRanksModelsAndMeetsThePaper) {
   EXPECT_GT(cubic.test_rms_mean[1], 0.5 * cubic.train_rms_mean[1]);
 }
 
+TEST(HallModel, ModelsWithTooManyParametersForTheSplitsAreLeftOutAndNamed) {
+  SyntheticHallRig rig;
+  const auto actual = rig.Record(30, true, 31);
+  const auto background = rig.Record(15, false, 32);
+  HallCalibrationOptions o;
+  o.repetitions = 3;
+  // 16 poses: a training split holds 13 (8:2), too few for the cubic model's 20 features.
+  const HallCalibrationResult r =
+      CalibrateHall(MakeInput(rig, actual, background, rig.Poses(16, 0.02, 0.005, 33)), o);
+  ASSERT_EQ(r.skipped_models.size(), 1u);
+  EXPECT_EQ(r.skipped_models[0].rfind("cubic: ", 0), 0u) << r.skipped_models[0];
+  EXPECT_NE(r.skipped_models[0].find("13 poses per training split"), std::string::npos)
+      << r.skipped_models[0];
+  ASSERT_EQ(r.table.size(), 3u);
+  for (const auto& m : r.table) EXPECT_NE(m.kind, HallModelKind::kCubic);
+  EXPECT_NE(r.best, HallModelKind::kCubic);
+  EXPECT_EQ(r.final_fit.model.kind, r.best);
+  // Only models that cannot be fitted at all make the calibration fail, naming why.
+  o.models = {HallModelKind::kCubic};
+  try {
+    CalibrateHall(MakeInput(rig, actual, background, rig.Poses(16, 0.02, 0.005, 33)), o);
+    FAIL() << "no model can be fitted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("no model can be fitted with 16 mirror poses"),
+              std::string::npos)
+        << e.what();
+  }
+}
+
 TEST(HallPredictor, RawReadingsToPoses) {
   SyntheticHallRig rig;
   rig.noise_uT = 0.2;
