@@ -1,0 +1,161 @@
+// The replay rig in process: a tiny demo acquisition (DemoRig + RunSession, as
+// RunDemoAcquisition does) replayed through the real drivers gives an identical folder (frames,
+// Hall files, generator transcript, session.yaml); so does a replay of that replay; missing
+// recordings are refused naming the file. (Solving is covered by the CLI acceptance test.)
+// Runs in its own network namespace (the mock camera serves GigE Vision on 127.0.0.1:3956).
+#include "sessions/replay/replay_rig.h"
+
+#include <gtest/gtest.h>
+
+#include <string>
+
+#include "sessions/orchestrator/demo_rig.h"
+#include "sessions/replay/session_compare.h"
+
+namespace msmcal::replay {
+namespace {
+
+namespace fs = std::filesystem;
+
+// Smaller than the orchestrator tests' TinySim: only acquired here, never solved. The camera at
+// half resolution makes the quality gate reject the step-1 frames (board or dots not found), so
+// the replay must also reproduce rejected frames (kept as rejected/step1_*.png).
+sim::SimOptions TinySim() {
+  sim::SimOptions o;
+  o.seed = 3;
+  o.camera.width = 1224;
+  o.camera.height = 1024;
+  o.camera.fx = o.camera.fy = 1000;
+  o.camera.cx = 611.5;
+  o.camera.cy = 511.5;
+  o.step1.poses = 2;
+  o.step2.neutral_frames = 1;
+  o.step2.fast_only_frames = 1;
+  o.triggers.max_triggers = 6;
+  o.triggers.min_separation_px = 13;
+  o.hall.background_duration_s = 1.0;
+  o.hall.actual_duration_s = 1.0;
+  return o;
+}
+
+fs::path FreshDir(const std::string& name) {
+  const fs::path dir = fs::path(::testing::TempDir()) / ("replay_rig_" + name);
+  fs::remove_all(dir);
+  return dir;
+}
+
+std::string Describe(const SessionComparison& c) {
+  std::string s = c.Table();
+  for (const auto& d : c.Differences())
+    s += d.file + ": " + ToString(d.verdict) + " " + d.detail + "\n";
+  return s;
+}
+
+void Replay(const fs::path& source, const fs::path& out) {
+  ReplayRigOptions ro;
+  ro.source = source;
+  ReplayRig rig(ro);
+  const orchestrator::OrchestratorOptions o = rig.MakeOrchestratorOptions(out);
+  EXPECT_EQ(o.run_kind, "replay");
+  orchestrator::RunSession(o, rig.Plan(), rig.world(), nullptr);
+}
+
+TEST(ReplayRig, DemoGeneratorConfigIsTheDemoRigs) {
+  orchestrator::DemoRigOptions ro;
+  ro.sim = TinySim();
+  ro.sim.mirror.fast.amplitude_vpp *= 1.1;
+  orchestrator::DemoRig rig(ro);
+  const gen::RigGeneratorConfig want = rig.GeneratorConfig();
+  const gen::RigGeneratorConfig got =
+      DemoGeneratorConfig(ro.sim, rig.generators_port(1), rig.generators_port(2));
+  for (auto [w, g] : {std::pair{&want.unit1, &got.unit1}, std::pair{&want.unit2, &got.unit2}}) {
+    EXPECT_EQ(g->name, w->name);
+    EXPECT_EQ(g->link.host, w->link.host);
+    EXPECT_EQ(g->link.port, w->link.port);
+    for (size_t ch = 0; ch < 2; ++ch) {
+      SCOPED_TRACE(w->name + " channel " + std::to_string(ch + 1));
+      EXPECT_EQ(g->limits[ch].role, w->limits[ch].role);
+      EXPECT_EQ(g->limits[ch].max_vpp, w->limits[ch].max_vpp);
+      EXPECT_EQ(g->limits[ch].max_abs_offset_v, w->limits[ch].max_abs_offset_v);
+      EXPECT_EQ(g->limits[ch].min_frequency_hz, w->limits[ch].min_frequency_hz);
+      EXPECT_EQ(g->limits[ch].max_frequency_hz, w->limits[ch].max_frequency_hz);
+      EXPECT_EQ(g->limits[ch].max_duty, w->limits[ch].max_duty);
+    }
+  }
+  for (auto [w, g] : {std::pair{&want.signals.fast, &got.signals.fast},
+                      std::pair{&want.signals.slow, &got.signals.slow}}) {
+    EXPECT_EQ(g->frequency_hz, w->frequency_hz);
+    EXPECT_EQ(g->amplitude_vpp, w->amplitude_vpp);
+    EXPECT_EQ(g->offset_v, w->offset_v);
+    EXPECT_EQ(g->phase_deg, w->phase_deg);
+  }
+  EXPECT_EQ(got.signals.coil_load_ohm, want.signals.coil_load_ohm);
+  for (auto [w, g] : {std::pair{&want.signals.laser, &got.signals.laser},
+                      std::pair{&want.signals.clock, &got.signals.clock}}) {
+    EXPECT_EQ(g->low_v, w->low_v);
+    EXPECT_EQ(g->high_v, w->high_v);
+    EXPECT_EQ(g->load_ohm, w->load_ohm);
+  }
+}
+
+TEST(ReplayRig, AReplayAndAReplayOfItReproduceTheAcquisition) {
+  const fs::path a = FreshDir("a"), b = FreshDir("b"), c = FreshDir("c");
+  {
+    orchestrator::DemoRigOptions ro;
+    ro.sim = TinySim();
+    orchestrator::DemoRig rig(ro);
+    orchestrator::OrchestratorOptions o = rig.MakeOrchestratorOptions(a);
+    o.run_kind = "demo";
+    o.run_config_yaml = sim::SimOptionsToYaml(ro.sim);
+    orchestrator::RunSession(o, rig.Plan(), rig.world(), nullptr);
+  }
+  ASSERT_TRUE(fs::exists(a / "generators_transcript.txt"));
+  ASSERT_TRUE(fs::exists(a / "rejected")) << "the test needs frames the gate rejected";
+  ASSERT_TRUE(fs::exists(a / "step2")) << "the test needs frames the gate accepted";
+
+  Replay(a, b);
+  const SessionComparison ab = CompareSessions(a, b);
+  EXPECT_TRUE(ab.identical()) << Describe(ab);
+  EXPECT_FALSE(ab.original_has_results);
+  EXPECT_GE(ab.files.size(), 13u) << Describe(ab);  // transcript, 2 yaml, >= 6 images, 4 Hall
+  int rejected = 0;
+  for (const auto& f : ab.files) rejected += f.file.rfind("rejected/", 0) == 0 ? 1 : 0;
+  EXPECT_GT(rejected, 0) << Describe(ab);
+
+  // The replay's journal names its source and keeps the original run's configuration.
+  const orchestrator::SessionJournalState jb = orchestrator::ReadSessionJournal(b);
+  EXPECT_EQ(jb.run_kind, "replay");
+  fs::path named;
+  const SourceRun from_b = ParseReplayRunConfigYaml(jb.run_config_yaml, "b", &named);
+  EXPECT_EQ(named, fs::absolute(a).lexically_normal());
+  EXPECT_EQ(from_b.kind, "demo");
+  EXPECT_EQ(ReadSourceRun(b).config_yaml, sim::SimOptionsToYaml(TinySim()));
+
+  Replay(b, c);  // a replay of a replay
+  const SessionComparison ac = CompareSessions(a, c);
+  EXPECT_TRUE(ac.identical()) << Describe(ac);
+
+  // Missing recordings are named before any instrument is touched.
+  fs::remove(c / "hall" / "actual_clock.csv");
+  try {
+    ReplayRigOptions ro;
+    ro.source = c;
+    ReplayRig rig(ro);
+    ADD_FAILURE() << "no error for the missing Hall clock file";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("hall/actual_clock.csv"), std::string::npos) << e.what();
+  }
+  const fs::path bare = FreshDir("bare");
+  fs::create_directories(bare);
+  try {
+    ReplayRigOptions ro;
+    ro.source = bare;
+    ReplayRig rig(ro);
+    ADD_FAILURE() << "no error for a folder without a journal";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("no session journal"), std::string::npos) << e.what();
+  }
+}
+
+}  // namespace
+}  // namespace msmcal::replay
