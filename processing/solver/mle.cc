@@ -206,20 +206,26 @@ struct Built {
   std::vector<std::array<double, 6>> tf;  // c1w, c2w, c1s...
   std::vector<std::array<double, 4>> beam;
   std::vector<std::array<double, 3>> plane;
-  std::vector<ceres::ResidualBlockId> corner_ids, sliding_ids, reflect_ids;
+  // Residual blocks per family (MleResult::Family order).
+  std::array<std::vector<ceres::ResidualBlockId>, kNumFamilies> ids;
   Estimate ref;
 };
 
-std::unique_ptr<Built> Build(const Observations& obs, const Estimate& ref, double corner_sigma,
-                             double sliding_scale, double reflect_scale) {
+// `scale[f]`: variance factor applied to family f's input covariance.
+std::unique_ptr<Built> Build(const Observations& obs, const Estimate& ref,
+                             const std::array<double, kNumFamilies>& scale) {
   auto b = std::make_unique<Built>();
   b->ref = ref;
   b->tf.assign(2 + obs.num_poses, std::array<double, 6>{});
   b->beam.assign(obs.num_beams, std::array<double, 4>{});
   b->plane.assign(obs.num_planes, std::array<double, 3>{});
   const Cam cam(obs.camera);
-  const Eigen::Matrix2d corner_cov = Eigen::Matrix2d::Identity() * corner_sigma * corner_sigma;
+  const double corner_var = obs.corner_sigma_px * obs.corner_sigma_px;
   for (const auto& cs : obs.corners) {
+    const int family = cs.view == BoardView::kC1World   ? kCornersC1World
+                       : cs.view == BoardView::kC2World ? kCornersC2World
+                                                        : kCornersC1Sliding;
+    const Eigen::Matrix2d corner_cov = Eigen::Matrix2d::Identity() * corner_var * scale[family];
     const Rigid3d& t = cs.view == BoardView::kC1World   ? ref.c1_from_world
                        : cs.view == BoardView::kC2World ? ref.c2_from_world
                                                         : ref.c1_from_sliding[cs.pose];
@@ -233,22 +239,23 @@ std::unique_ptr<Built> Build(const Observations& obs, const Estimate& ref, doubl
           cam,
           {cs.points_in_board[i].x(), cs.points_in_board[i].y(), cs.points_in_board[i].z()},
           Whitener(cs.px[i], corner_cov)};
-      b->corner_ids.push_back(b->problem.AddResidualBlock(
+      b->ids[family].push_back(b->problem.AddResidualBlock(
           new ceres::AutoDiffCostFunction<CornerCost, 2, 6>(f), nullptr, block));
     }
   }
   const TfRef c1w(ref.c1_from_world), c2w(ref.c2_from_world);
   for (const auto& d : obs.sliding_dots) {
     auto* f = new SlidingCost{c1w, TfRef(ref.c1_from_sliding[d.pose]), BeamRef(ref.beams[d.beam]),
-                              cam, Whitener(d.obs.px, d.obs.cov_px2 * sliding_scale)};
-    b->sliding_ids.push_back(b->problem.AddResidualBlock(
+                              cam, Whitener(d.obs.px, d.obs.cov_px2 * scale[kSlidingDots])};
+    b->ids[kSlidingDots].push_back(b->problem.AddResidualBlock(
         new ceres::AutoDiffCostFunction<SlidingCost, 2, 6, 6, 4>(f), nullptr, b->tf[0].data(),
         b->tf[2 + d.pose].data(), b->beam[d.beam].data()));
   }
   for (const auto& d : obs.reflected_dots) {
+    const int family = d.near_board_edge ? kReflectedDotsNearEdge : kReflectedDots;
     auto* f = new ReflectCost{c2w, BeamRef(ref.beams[d.beam]), PlaneRef(ref.planes[d.plane]), cam,
-                              Whitener(d.obs.px, d.obs.cov_px2 * reflect_scale)};
-    b->reflect_ids.push_back(b->problem.AddResidualBlock(
+                              Whitener(d.obs.px, d.obs.cov_px2 * scale[family])};
+    b->ids[family].push_back(b->problem.AddResidualBlock(
         new ceres::AutoDiffCostFunction<ReflectCost, 2, 6, 4, 3>(f), nullptr, b->tf[1].data(),
         b->beam[d.beam].data(), b->plane[d.plane].data()));
   }
@@ -289,6 +296,8 @@ std::string MleOptions::Validate() const {
     s << "max_iterations = " << max_iterations << " must be >= 1";
   else if (num_threads < 1)
     s << "num_threads = " << num_threads << " must be >= 1";
+  else if (variance_passes < 1)
+    s << "variance_passes = " << variance_passes << " must be >= 1";
   return s.str();
 }
 
@@ -330,87 +339,38 @@ Eigen::MatrixXd MleResult::JointCovariance(int j) const {
   return out;
 }
 
-MleResult SolveMle(const Observations& obs, const Estimate& initial, const MleOptions& options) {
-  MleResult result;
-  result.num_poses = obs.num_poses;
-  if (const std::string err = options.Validate(); !err.empty()) {
-    result.message = "MleOptions: " + err;
-    return result;
-  }
-  double corner_sigma = obs.corner_sigma_px, sliding_scale = 1.0, reflect_scale = 1.0;
-  Estimate current = initial;
-  const int num_tf_params = 6 * (2 + obs.num_poses);
-  const int passes = options.estimate_variance_factors ? 2 : 1;
-  for (int pass = 0; pass < passes; ++pass) {
-    auto b = Build(obs, current, corner_sigma, sliding_scale, reflect_scale);
-    ceres::Solver::Options so;
-    so.linear_solver_type = ceres::DENSE_SCHUR;
-    auto* ordering = new ceres::ParameterBlockOrdering;
-    for (auto& p : b->plane) ordering->AddElementToGroup(p.data(), 0);
-    for (auto& t : b->tf)
-      if (b->problem.HasParameterBlock(t.data())) ordering->AddElementToGroup(t.data(), 1);
-    for (auto& l : b->beam)
-      if (b->problem.HasParameterBlock(l.data())) ordering->AddElementToGroup(l.data(), 1);
-    so.linear_solver_ordering.reset(ordering);
-    so.max_num_iterations = options.max_iterations;
-    so.num_threads = options.num_threads;
-    so.function_tolerance = 1e-12;
-    so.parameter_tolerance = 1e-12;
-    so.gradient_tolerance = 1e-14;
-    ceres::Solver::Summary summary;
-    ceres::Solve(so, &b->problem, &summary);
-    result.iterations += static_cast<int>(summary.iterations.size());
-    if (pass == 0) result.initial_cost = summary.initial_cost;
-    result.final_cost = summary.final_cost;
-    result.solver_time_s += summary.total_time_in_seconds;
-    result.message = summary.message;
-    if (!summary.IsSolutionUsable()) {
-      result.message = "Ceres: " + summary.message;
-      return result;
-    }
-    current = Extract(*b);
-    // Posterior variance factors per family; degrees of freedom: corners fix the transforms,
-    // sliding dots the beams, reflected dots the planes.
-    const int n_corner = 2 * static_cast<int>(b->corner_ids.size());
-    const int n_slide = 2 * static_cast<int>(b->sliding_ids.size());
-    const int n_refl = 2 * static_cast<int>(b->reflect_ids.size());
-    auto factor = [&](const std::vector<ceres::ResidualBlockId>& ids, int n, int params) {
-      return n > params ? Chi2(b->problem, ids) / (n - params) : 1.0;
-    };
-    const double fc = factor(b->corner_ids, n_corner, num_tf_params);
-    // Dots pooled: per-family factors (sliding vs reflected) proved biased on small problems
-    // because the families share the beam parameters.
-    std::vector<ceres::ResidualBlockId> dot_ids = b->sliding_ids;
-    dot_ids.insert(dot_ids.end(), b->reflect_ids.begin(), b->reflect_ids.end());
-    const double fd = factor(dot_ids, n_slide + n_refl, 4 * obs.num_beams + 3 * obs.num_planes);
-    if (pass + 1 < passes) {
-      corner_sigma *= std::sqrt(fc);
-      sliding_scale *= fd;
-      reflect_scale *= fd;
-    }
-    const double cs = corner_sigma / obs.corner_sigma_px;
-    result.corner_variance_factor = cs * cs * (pass + 1 < passes ? 1 : fc);
-    result.dot_variance_factor = sliding_scale * (pass + 1 < passes ? 1 : fd);
-  }
-  result.estimate = current;
+namespace {
 
-  // Covariance at the solution with charts re-centred (all parameters zero).
-  auto b = Build(obs, current, corner_sigma, sliding_scale, reflect_scale);
+// Parameter blocks in covariance order: planes, transforms (c1w, c2w, c1s...), beams.
+std::vector<double*> CovarianceBlocks(Built& b) {
   std::vector<double*> blocks;
-  for (auto& p : b->plane) blocks.push_back(p.data());
-  for (auto& t : b->tf) blocks.push_back(t.data());
-  for (auto& l : b->beam) blocks.push_back(l.data());
+  for (auto& p : b.plane) blocks.push_back(p.data());
+  for (auto& t : b.tf) blocks.push_back(t.data());
+  for (auto& l : b.beam) blocks.push_back(l.data());
+  return blocks;
+}
+
+// Covariance at the solution (charts re-centred, all parameters zero) through the Schur
+// complement of the planes; also the leverages h_f = sum over the rows of family f of
+// J_i Sigma J_i^T (whitened J), so that r_f = n_f - h_f is the family's redundancy.
+bool Covariance(Built& b, const Observations& obs, MleResult* result,
+                std::array<double, kNumFamilies>* leverage) {
+  const std::vector<double*> blocks = CovarianceBlocks(b);
   for (double* p : blocks) {
-    if (!b->problem.HasParameterBlock(p)) {
-      result.usable = false;
-      result.message = "a transform or beam has no observations (covariance undefined)";
-      return result;
+    if (!b.problem.HasParameterBlock(p)) {
+      result->message = "a transform or beam has no observations (covariance undefined)";
+      return false;
     }
   }
   ceres::Problem::EvaluateOptions eo;
   eo.parameter_blocks = blocks;
+  std::vector<int> family_of_block;
+  for (int f = 0; f < kNumFamilies; ++f) {
+    eo.residual_blocks.insert(eo.residual_blocks.end(), b.ids[f].begin(), b.ids[f].end());
+    family_of_block.insert(family_of_block.end(), b.ids[f].size(), f);
+  }
   ceres::CRSMatrix crs;
-  b->problem.Evaluate(eo, nullptr, nullptr, nullptr, &crs);
+  b.problem.Evaluate(eo, nullptr, nullptr, nullptr, &crs);
   using SpRow = Eigen::SparseMatrix<double, Eigen::RowMajor, int>;
   const Eigen::Map<const SpRow> j(crs.num_rows, crs.num_cols, static_cast<int>(crs.values.size()),
                                   crs.rows.data(), crs.cols.data(), crs.values.data());
@@ -441,8 +401,8 @@ MleResult SolveMle(const Observations& obs, const Estimate& initial, const MleOp
   for (int p = 0; p < obs.num_planes; ++p) {
     Eigen::FullPivLU<Eigen::Matrix3d> lu(hpp[p]);
     if (!lu.isInvertible()) {
-      result.message = "information of mirror plane " + std::to_string(p) + " is singular";
-      return result;
+      result->message = "information of mirror plane " + std::to_string(p) + " is singular";
+      return false;
     }
     hinv[p] = lu.inverse();
     for (int r = 0; r < 3; ++r)
@@ -456,27 +416,155 @@ MleResult SolveMle(const Observations& obs, const Estimate& initial, const MleOp
   const Eigen::LDLT<Eigen::MatrixXd> ldlt(s);
   if (ldlt.info() != Eigen::Success || !ldlt.isPositive() ||
       ldlt.vectorD().minCoeff() <= 1e-12 * std::max(1.0, ldlt.vectorD().maxCoeff())) {
-    result.message = "Schur complement of the shared parameters is singular";
-    return result;
+    result->message = "Schur complement of the shared parameters is singular";
+    return false;
   }
-  result.other_cov = ldlt.solve(Eigen::MatrixXd::Identity(no, no));
-  result.plane_gain = gain;
-  result.plane_cov.resize(obs.num_planes);
+  result->other_cov = ldlt.solve(Eigen::MatrixXd::Identity(no, no));
+  result->plane_gain = gain;
+  result->plane_cov.resize(obs.num_planes);
+  result->plane_own_cov = hinv;
+  // Cross covariance plane p vs others: -G_p^T Sigma_OO (3 x no), over G_p's non-zero rows.
+  std::vector<Eigen::MatrixXd> cross(leverage ? obs.num_planes : 0);
   for (int p = 0; p < obs.num_planes; ++p) {
     // Sigma_pp = H_pp^-1 + G_p^T Sigma_OO G_p over the few nonzero rows of G_p.
     std::vector<int> rows;
-    std::vector<Eigen::Vector3d> vals;
-    std::vector<std::pair<int, Eigen::Vector3d>> nz;
     Eigen::MatrixXd gp = Eigen::MatrixXd(gain.middleCols(3 * p, 3));
     for (int r = 0; r < no; ++r)
       if (gp.row(r).squaredNorm() > 0) rows.push_back(r);
     Eigen::MatrixXd g(rows.size(), 3), so(rows.size(), rows.size());
     for (size_t a = 0; a < rows.size(); ++a) {
       g.row(a) = gp.row(rows[a]);
-      for (size_t c = 0; c < rows.size(); ++c) so(a, c) = result.other_cov(rows[a], rows[c]);
+      for (size_t c = 0; c < rows.size(); ++c) so(a, c) = result->other_cov(rows[a], rows[c]);
     }
-    result.plane_cov[p] = hinv[p] + g.transpose() * so * g;
+    result->plane_cov[p] = hinv[p] + g.transpose() * so * g;
+    if (leverage) {
+      Eigen::MatrixXd oc(rows.size(), no);
+      for (size_t a = 0; a < rows.size(); ++a) oc.row(a) = result->other_cov.row(rows[a]);
+      cross[p] = -g.transpose() * oc;
+    }
   }
+  if (leverage) {
+    leverage->fill(0.0);
+    // Row r of block k: leverage = J_r Sigma J_r^T over its few non-zeros.
+    for (int r = 0; r < crs.num_rows; ++r) {
+      const int begin = crs.rows[r], end = crs.rows[r + 1];
+      double lev = 0;
+      for (int a = begin; a < end; ++a) {
+        const int ca = crs.cols[a];
+        const double va = crs.values[a];
+        for (int c = begin; c < end; ++c) {
+          const int cb = crs.cols[c];
+          const double vb = crs.values[c];
+          double cov = 0;
+          if (ca < np && cb < np)
+            cov = ca / 3 == cb / 3 ? result->plane_cov[ca / 3](ca % 3, cb % 3) : 0.0;
+          else if (ca < np)
+            cov = cross[ca / 3](ca % 3, cb - np);
+          else if (cb < np)
+            cov = cross[cb / 3](cb % 3, ca - np);
+          else
+            cov = result->other_cov(ca - np, cb - np);
+          lev += va * cov * vb;
+        }
+      }
+      (*leverage)[family_of_block[r / 2]] += lev;
+    }
+  }
+  return true;
+}
+
+}  // namespace
+
+const char* MleFamilyName(int family) {
+  static const char* const kNames[kNumFamilies] = {"corners_c1_world", "corners_c1_sliding",
+                                                   "corners_c2_world", "sliding_dots",
+                                                   "reflected_dots",   "reflected_dots_near_edge"};
+  return family >= 0 && family < kNumFamilies ? kNames[family] : "?";
+}
+
+MleResult SolveMle(const Observations& obs, const Estimate& initial, const MleOptions& options) {
+  MleResult result;
+  result.num_poses = obs.num_poses;
+  if (const std::string err = options.Validate(); !err.empty()) {
+    result.message = "MleOptions: " + err;
+    return result;
+  }
+  std::array<double, kNumFamilies> scale;
+  scale.fill(1.0);
+  Estimate current = initial;
+  const int passes = options.estimate_variance_factors ? options.variance_passes + 1 : 1;
+  for (int pass = 0; pass < passes; ++pass) {
+    auto b = Build(obs, current, scale);
+    ceres::Solver::Options so;
+    so.linear_solver_type = ceres::DENSE_SCHUR;
+    auto* ordering = new ceres::ParameterBlockOrdering;
+    for (auto& p : b->plane) ordering->AddElementToGroup(p.data(), 0);
+    for (auto& t : b->tf)
+      if (b->problem.HasParameterBlock(t.data())) ordering->AddElementToGroup(t.data(), 1);
+    for (auto& l : b->beam)
+      if (b->problem.HasParameterBlock(l.data())) ordering->AddElementToGroup(l.data(), 1);
+    so.linear_solver_ordering.reset(ordering);
+    so.max_num_iterations = options.max_iterations;
+    so.num_threads = options.num_threads;
+    so.function_tolerance = 1e-12;
+    so.parameter_tolerance = 1e-12;
+    so.gradient_tolerance = 1e-14;
+    ceres::Solver::Summary summary;
+    ceres::Solve(so, &b->problem, &summary);
+    result.iterations += static_cast<int>(summary.iterations.size());
+    if (pass == 0) result.initial_cost = summary.initial_cost;
+    result.final_cost = summary.final_cost;
+    result.solver_time_s += summary.total_time_in_seconds;
+    result.message = summary.message;
+    if (!summary.IsSolutionUsable()) {
+      result.message = "Ceres: " + summary.message;
+      return result;
+    }
+    current = Extract(*b);
+    // Covariance at the solution (charts re-centred on it).
+    auto bc = Build(obs, current, scale);
+    const bool last = pass + 1 == passes;
+    std::array<double, kNumFamilies> leverage{};
+    if (!Covariance(*bc, obs, &result, options.estimate_variance_factors ? &leverage : nullptr))
+      return result;
+    if (!options.estimate_variance_factors) break;
+    // Variance-component estimation (Foerstner): each family's factor is its chi^2 over its
+    // redundancy r_f = n_f - sum of its leverages; the factors multiply the input covariances.
+    for (int f = 0; f < kNumFamilies; ++f) {
+      const double n = 2.0 * static_cast<double>(bc->ids[f].size());
+      result.redundancy[f] = n - leverage[f];
+      result.family_chi2[f] = Chi2(bc->problem, bc->ids[f]);
+    }
+    // Dot families share one factor while one of them is too small to estimate its own (all
+    // dots have the same covariance model; only the background differs). A factor estimated
+    // from a small redundancy is noisy, and its noise makes the covariance over-confident as
+    // often as not.
+    constexpr double kMinRedundancy = 12;
+    const int dot_families[3] = {kSlidingDots, kReflectedDots, kReflectedDotsNearEdge};
+    double pooled_r = 0, pooled_chi2_scaled = 0;
+    bool pool = false;
+    for (int f : dot_families) {
+      pooled_r += result.redundancy[f];
+      pooled_chi2_scaled += result.family_chi2[f] * scale[f];  // chi^2 in units of the input cov
+      if (!bc->ids[f].empty() && result.redundancy[f] < kMinRedundancy) pool = true;
+    }
+    for (int f = 0; f < kNumFamilies; ++f) {
+      const bool is_dot = f == kSlidingDots || f == kReflectedDots || f == kReflectedDotsNearEdge;
+      double ratio = 1.0;  // a family with (almost) no redundancy keeps its factor
+      if (is_dot && pool) {
+        // Pooled factor relative to the input covariance, applied to this family's scale.
+        if (pooled_r > 0.5) ratio = pooled_chi2_scaled / pooled_r / scale[f];
+      } else if (result.redundancy[f] > 0.5) {
+        ratio = result.family_chi2[f] / result.redundancy[f];
+      }
+      result.variance_factor[f] = scale[f] * ratio;
+      if (!last) scale[f] *= ratio;
+    }
+  }
+  result.corner_variance_factor = result.variance_factor[kCornersC2World];
+  result.dot_variance_factor = result.variance_factor[kReflectedDots];
+  result.covariance_scale = scale;
+  result.estimate = current;
   result.usable = true;
   return result;
 }

@@ -14,6 +14,7 @@
 
 #include <Eigen/Core>
 #include <Eigen/SparseCore>
+#include <array>
 #include <string>
 #include <vector>
 
@@ -21,12 +22,26 @@
 
 namespace msmcal::solver {
 
+// Residual families with their own variance factor (variance-component estimation).
+enum MleFamily {
+  kCornersC1World = 0,     // world-board corners seen by C1 (step 1)
+  kCornersC1Sliding,       // sliding-board corners (step 1)
+  kCornersC2World,         // world-board corners seen by C2 (step 2)
+  kSlidingDots,            // C_L: beam dots on the sliding board
+  kReflectedDots,          // C_R: reflected dots on the world board, clear of square edges
+  kReflectedDotsNearEdge,  // C_R: reflected dots overlapping a square edge or corner
+  kNumFamilies
+};
+const char* MleFamilyName(int family);  // "corners_c1_world", ..., "reflected_dots"
+
 struct MleOptions {
   int max_iterations = 100;
-  // Rescale corner and (pooled) dot covariances by their posterior variance factors
-  // (chi^2 / dof of each family) and solve again, so that the reported covariance matches the
-  // observed scatter.
+  // Variance-component estimation: each family's input covariance is rescaled by its posterior
+  // variance factor chi^2_f / r_f, r_f = n_f - (sum of the family's leverages) its redundancy,
+  // and the problem is solved again, `variance_passes` times; the reported covariance uses the
+  // final factors, so that it matches the observed scatter of every family.
   bool estimate_variance_factors = true;
+  int variance_passes = 3;
   int num_threads = 1;
   std::string Validate() const;
 };
@@ -37,12 +52,21 @@ struct MleResult {
   int iterations = 0;
   double initial_cost = 0, final_cost = 0;
   double solver_time_s = 0;  // as reported by Ceres
-  // Posterior variance factors (chi^2 / dof) of each residual family relative to the input
-  // covariances; with estimate_variance_factors the reported covariances include them.
+  // Posterior variance factors (chi^2_f / r_f) of each residual family relative to the input
+  // covariances, from the last pass; with estimate_variance_factors the reported covariances
+  // use `covariance_scale` (the factors of the pass before, equal to them at convergence).
+  std::array<double, kNumFamilies> variance_factor{1, 1, 1, 1, 1, 1};
+  std::array<double, kNumFamilies> covariance_scale{1, 1, 1, 1, 1, 1};
+  std::array<double, kNumFamilies> redundancy{}, family_chi2{};
+  // Shorthands: variance_factor[kCornersC2World] and variance_factor[kReflectedDots].
   double corner_variance_factor = 1, dot_variance_factor = 1;
   Estimate estimate;
   // Per-plane 3x3 covariance of (B^T dn [rad, rad], dd [mm]), B = TangentBasis(plane.n).
   std::vector<Eigen::Matrix3d> plane_cov;
+  // Its own part H_jj^-1 (the plane's dots alone, shared parameters fixed). Planes are
+  // independent given the shared parameters o: x_j = own_j - G_j^T o with G = plane_gain,
+  // so Cov(x_j, x_k) = G_j^T other_cov G_k for j != k.
+  std::vector<Eigen::Matrix3d> plane_own_cov;
   // Covariance of the shared ("other") parameters, ordered: c1_from_world (6), c2_from_world
   // (6), c1_from_sliding[l] (6 each), beams[b] (4 each), in their re-centred charts.
   Eigen::MatrixXd other_cov;

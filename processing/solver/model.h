@@ -43,6 +43,9 @@ struct ReflectedDot {  // laser dot of beam `beam` reflected by mirror plane `pl
   int plane = 0;
   int beam = 0;
   PixelObs obs;
+  // The spot overlaps a square edge or corner of the board (after the top-hat, the background
+  // there biases the centroid): its variance factor is estimated separately (mle.h).
+  bool near_board_edge = false;
 };
 
 struct Observations {

@@ -11,6 +11,7 @@
 #include <sstream>
 
 #include "processing/geometry/mirror_frame.h"
+#include "processing/solver/home_frame.h"
 
 namespace msmcal::solver {
 namespace {
@@ -90,6 +91,32 @@ std::vector<vision::Dot> DotsOnBoard(const std::vector<vision::Dot>& dots,
   std::vector<vision::Dot> out;
   for (const auto& d : dots)
     if (vision::InsideOutline(outline, d.px)) out.push_back(d);
+  return out;
+}
+
+// Frames of a static board seen by a fixed camera (the world board in every step 1 frame for
+// C1 and in every step 2 frame for C2, a sliding pose seen in several frames) repeat the same
+// view: their corner errors are mostly the detector's per-corner bias, the same in every frame,
+// not independent noise. Each view enters the MLE once, as the mean of its frames' corners, so
+// that the pose information is not counted K times (docs/solver.md, "Covariance honesty").
+std::vector<CornerSet> MergeRepeatedViews(const std::vector<CornerSet>& sets) {
+  std::vector<CornerSet> out;
+  std::vector<int> count;
+  for (const auto& cs : sets) {
+    int k = 0;
+    while (k < static_cast<int>(out.size()) &&
+           !(out[k].view == cs.view && out[k].pose == cs.pose && out[k].px.size() == cs.px.size()))
+      ++k;
+    if (k == static_cast<int>(out.size())) {
+      out.push_back(cs);
+      count.push_back(1);
+      continue;
+    }
+    for (size_t i = 0; i < cs.px.size(); ++i) out[k].px[i] += cs.px[i];
+    ++count[k];
+  }
+  for (size_t k = 0; k < out.size(); ++k)
+    for (auto& p : out[k].px) p /= count[k];
   return out;
 }
 
@@ -433,6 +460,7 @@ SolveOutput SolveRecording(const dataset::Recording& rec, const ImageLoader& loa
     const dataset::Step2Frame* frame = nullptr;
     std::vector<vision::Dot> dots;
     std::vector<Eigen::Vector3d> dots_in_world;
+    std::vector<bool> near_edge;
   };
   std::vector<S2> s2;
   std::optional<Rigid3d> c2_from_world;
@@ -454,15 +482,31 @@ SolveOutput SolveRecording(const dataset::Recording& rec, const ImageLoader& loa
     }
     obs.corners.push_back({BoardView::kC2World, -1, world_pts, board->corners_px});
     if (!c2_from_world) c2_from_world = SolvePlanarPnP(rec.camera, world_pts, board->corners_px);
-    s2.push_back({&f, dots, {}});
+    s2.push_back({&f, dots, {}, {}});
   }
   if (!c2_from_world)
     throw fail("step2: the world board (" + SizeText(rec.world_board) +
                ") was not found in any usable step 2 image");
+  // Dots whose spot (blob radius plus half the top-hat kernel) reaches a square edge of the
+  // world board: the background there biases the centroid (docs/solver.md, "Dot covariance").
+  auto near_edge = [&](const vision::Dot& d, const Eigen::Vector3d& p) {
+    const auto p1 = BackProjectToBoard(rec.camera, *c2_from_world, d.px + Eigen::Vector2d(1, 0));
+    if (!p1) return false;
+    const double mm_per_px = (*p1 - p).norm();
+    const double reach_mm =
+        (std::sqrt(d.num_pixels / M_PI) + 0.5 * o.dots.background_kernel_px) * mm_per_px;
+    const double sq = rec.world_board.square_mm;
+    auto to_line = [&](double v) {
+      const double m = v - sq * std::floor(v / sq);
+      return std::min(m, sq - m);
+    };
+    return std::min(to_line(p.x()), to_line(p.y())) < reach_mm;
+  };
   for (auto& s : s2)
     for (const auto& d : s.dots) {
       const auto p = BackProjectToBoard(rec.camera, *c2_from_world, d.px);
       s.dots_in_world.push_back(p.value_or(Eigen::Vector3d::Zero()));
+      s.near_edge.push_back(p && near_edge(d, *p));
     }
   std::vector<Group> groups;
   for (size_t fi = 0; fi < s2.size(); ++fi) {
@@ -610,7 +654,7 @@ SolveOutput SolveRecording(const dataset::Recording& rec, const ImageLoader& loa
       plane_keys.emplace_back(fr->kind, j);
     }
     for (const auto& [b, d] : g.dot_of_beam) {
-      const ReflectedDot rd{it->second, b, to_obs(s2[g.frame].dots[d])};
+      const ReflectedDot rd{it->second, b, to_obs(s2[g.frame].dots[d]), s2[g.frame].near_edge[d]};
       (is_estimate[b] ? obs.reflected_dots : validation_dots).push_back(rd);
     }
   }
@@ -626,6 +670,7 @@ SolveOutput SolveRecording(const dataset::Recording& rec, const ImageLoader& loa
                " usable fast_only mirror planes; {0} needs >= 2");
 
   // ---------------- Estimation ----------------
+  obs.corners = MergeRepeatedViews(obs.corners);
   std::string err;
   const auto init = InitialEstimate(obs, &err);
   if (!init) throw fail("initial values: " + err);
@@ -634,27 +679,73 @@ SolveOutput SolveRecording(const dataset::Recording& rec, const ImageLoader& loa
   const Estimate& est = out.mle.estimate;
 
   // {0}.
-  std::vector<Plane> fast, all;
-  Plane neutral;
+  // Origin on the neutral plane, least-squares closest to the scan planes (home_frame.h).
+  int neutral_index = -1;
+  std::vector<int> fast_index, scan_index;
   for (int p = 0; p < obs.num_planes; ++p) {
-    all.push_back(est.planes[p]);
-    if (plane_keys[p].first == Step2Kind::kNeutral) neutral = est.planes[p];
-    if (plane_keys[p].first == Step2Kind::kFastOnly) fast.push_back(est.planes[p]);
+    if (plane_keys[p].first == Step2Kind::kNeutral) neutral_index = p;
+    if (plane_keys[p].first == Step2Kind::kFastOnly) fast_index.push_back(p);
+    if (plane_keys[p].first == Step2Kind::kScan) scan_index.push_back(p);
   }
-  out.world_from_mirror0 = geometry::MirrorHomeFrame(neutral.n, geometry::FastAxisFromPlanes(fast),
-                                                     geometry::RotationCentreFromPlanes(all));
+  auto frame_of = [&](const std::vector<Plane>& planes) {
+    std::vector<Plane> fast, scan;
+    for (int p : fast_index) fast.push_back(planes[p]);
+    for (int p : scan_index) scan.push_back(planes[p]);
+    return HomeFrame(planes[neutral_index], geometry::FastAxisFromPlanes(fast), scan);
+  };
+  out.world_from_mirror0 = frame_of(est.planes);
   const Eigen::Vector3d x_o = out.world_from_mirror0.translation;
+
+  // Uncertainty of {0} itself: its error phi = [rotation vector (3), dX_O (3)] is a function of
+  // the neutral, fast-only and scan planes, phi = sum_k W_k dx_k (central differences). With
+  // x_k = own_k - G_k^T o (mle.h), Cov(phi) = sum_k W_k H_k^-1 W_k^T + M Sigma_OO M^T,
+  // M = -sum_k W_k G_k^T, and Cov(x_j, phi) = H_j^-1 W_j^T + (-G_j^T) Sigma_OO M^T.
+  const MleResult& mle = out.mle;
+  const int num_other = static_cast<int>(mle.other_cov.rows());
+  auto frame_error = [&](const Rigid3d& f) {
+    Eigen::Matrix<double, 6, 1> e;
+    e.head<3>() =
+        geometry::So3Log(f.RotationMatrix() * out.world_from_mirror0.RotationMatrix().transpose());
+    e.tail<3>() = f.translation - x_o;
+    return e;
+  };
+  std::vector<Eigen::Matrix<double, 6, 3>> frame_w(obs.num_planes,
+                                                   Eigen::Matrix<double, 6, 3>::Zero());
+  std::vector<int> frame_set = scan_index;
+  frame_set.push_back(neutral_index);
+  frame_set.insert(frame_set.end(), fast_index.begin(), fast_index.end());
+  std::vector<Plane> perturbed = est.planes;
+  auto neg_gt = [&](int p) {  // -G_p^T, 3 x num_other
+    return Eigen::MatrixXd(-Eigen::MatrixXd(mle.plane_gain.middleCols(3 * p, 3)).transpose());
+  };
+  Eigen::Matrix<double, 6, 6> cov_phi = Eigen::Matrix<double, 6, 6>::Zero();
+  Eigen::MatrixXd m_phi = Eigen::MatrixXd::Zero(6, num_other);
+  for (int p : frame_set) {
+    for (int k = 0; k < 3; ++k) {
+      Eigen::Vector3d h = Eigen::Vector3d::Zero();
+      h(k) = 1e-6;
+      perturbed[p] = PlaneFromChart(est.planes[p], h);
+      const auto plus = frame_error(frame_of(perturbed));
+      perturbed[p] = PlaneFromChart(est.planes[p], -h);
+      const auto minus = frame_error(frame_of(perturbed));
+      frame_w[p].col(k) = (plus - minus) / 2e-6;
+    }
+    perturbed[p] = est.planes[p];
+    cov_phi += frame_w[p] * mle.plane_own_cov[p] * frame_w[p].transpose();
+    m_phi += frame_w[p] * neg_gt(p);
+  }
+  const Eigen::MatrixXd m_sigma = m_phi * mle.other_cov;  // 6 x num_other
+  cov_phi += m_sigma * m_phi.transpose();
+  out.mirror0_cov = cov_phi;
 
   // Rows.
   std::map<int, double> t_of_j;
   for (const auto& t : rec.triggers) t_of_j[t.j] = t.t_s;
-  auto pose_vec = [&](const Plane& p) {
-    const auto pose = geometry::PoseFromWorldPlane(out.world_from_mirror0, p);
+  auto pose_vec = [&](const Rigid3d& frame, const Plane& p) {
+    const auto pose = geometry::PoseFromWorldPlane(frame, p);
     return Eigen::Vector3d(pose.alpha_rad * kRadToDeg, pose.beta_rad * kRadToDeg, pose.trans_mm);
   };
-  std::vector<int> scan_planes;
-  for (int p = 0; p < obs.num_planes; ++p)
-    if (plane_keys[p].first == Step2Kind::kScan) scan_planes.push_back(p);
+  std::vector<int> scan_planes = scan_index;
   std::sort(scan_planes.begin(), scan_planes.end(),
             [&](int a, int b) { return plane_keys[a].second < plane_keys[b].second; });
   for (int p : scan_planes) {
@@ -662,23 +753,37 @@ SolveOutput SolveRecording(const dataset::Recording& rec, const ImageLoader& loa
     row.j = plane_keys[p].second;
     row.t_s = t_of_j[row.j];
     row.plane_in_world = est.planes[p];
-    const Eigen::Vector3d v = pose_vec(est.planes[p]);
+    const Eigen::Vector3d v = pose_vec(out.world_from_mirror0, est.planes[p]);
     row.alpha_deg = v(0);
     row.beta_deg = v(1);
     row.trans_mm = v(2);
-    // Propagate the chart covariance (central differences).
-    Eigen::Matrix3d jac;
+    // Pose in {0} as a function of the plane (chart) and of {0}'s error phi.
+    Eigen::Matrix3d a;
+    Eigen::Matrix<double, 3, 6> f;
     for (int k = 0; k < 3; ++k) {
       Eigen::Vector3d h = Eigen::Vector3d::Zero();
       h(k) = 1e-6;
-      jac.col(k) = (pose_vec(PlaneFromChart(est.planes[p], h)) -
-                    pose_vec(PlaneFromChart(est.planes[p], -h))) /
-                   2e-6;
+      a.col(k) = (pose_vec(out.world_from_mirror0, PlaneFromChart(est.planes[p], h)) -
+                  pose_vec(out.world_from_mirror0, PlaneFromChart(est.planes[p], -h))) /
+                 2e-6;
     }
-    const Eigen::Matrix3d cov = jac * out.mle.plane_cov[p] * jac.transpose();
-    row.sigma_alpha_deg = std::sqrt(cov(0, 0));
-    row.sigma_beta_deg = std::sqrt(cov(1, 1));
-    row.sigma_trans_mm = std::sqrt(cov(2, 2));
+    for (int k = 0; k < 6; ++k) {
+      Eigen::Matrix<double, 6, 1> e = Eigen::Matrix<double, 6, 1>::Zero();
+      auto moved = [&](double h) {
+        e(k) = h;
+        return Rigid3d(geometry::So3Exp(e.head<3>()) * out.world_from_mirror0.RotationMatrix(),
+                       x_o + e.tail<3>());
+      };
+      f.col(k) =
+          (pose_vec(moved(1e-6), est.planes[p]) - pose_vec(moved(-1e-6), est.planes[p])) / 2e-6;
+    }
+    const Eigen::Matrix<double, 3, 6> cross =
+        mle.plane_own_cov[p] * frame_w[p].transpose() + neg_gt(p) * m_sigma.transpose();
+    const Eigen::Matrix3d cov = a * mle.plane_cov[p] * a.transpose() + a * cross * f.transpose() +
+                                f * cross.transpose() * a.transpose() + f * cov_phi * f.transpose();
+    row.sigma_alpha_deg = std::sqrt(std::max(cov(0, 0), 0.0));
+    row.sigma_beta_deg = std::sqrt(std::max(cov(1, 1), 0.0));
+    row.sigma_trans_mm = std::sqrt(std::max(cov(2, 2), 0.0));
     out.planes.push_back(row);
   }
   for (int b = 0; b < num_beams; ++b) {
@@ -761,7 +866,11 @@ SolveOutput SolveRecording(const dataset::Recording& rec, const ImageLoader& loa
     Eigen::MatrixXd sub(13, 13);
     for (int a = 0; a < 13; ++a)
       for (int b = 0; b < 13; ++b) sub(a, b) = joint(idx[a], idx[b]);
-    const Eigen::Matrix2d c = jac * sub * jac.transpose() + vd.obs.cov_px2;
+    // The held-out dot's own covariance with the reflected-dot variance factor of the MLE.
+    const Eigen::Matrix2d c =
+        jac * sub * jac.transpose() +
+        vd.obs.cov_px2 *
+            out.mle.covariance_scale[vd.near_board_edge ? kReflectedDotsNearEdge : kReflectedDots];
     const Eigen::Vector2d e = vd.obs.px - *pred;
     d.predicted_sigma_px = std::sqrt(c.trace() / 2);
     d.normalised_error = std::sqrt(e.dot(c.ldlt().solve(e)) / 2);

@@ -64,6 +64,9 @@ struct SolveOutput {
   std::vector<DroppedFrame> dropped;
   std::vector<std::string> notes;  // what the solver decided (associations, counts)
   geometry::Rigid3d world_from_mirror0;
+  // Covariance of {0}'s error [rotation vector (rad, in {W}: R_true = Exp(-e) R_est, small),
+  // X_O (mm, in {W})], propagated from the neutral, fast-only and scan planes.
+  Eigen::Matrix<double, 6, 6> mirror0_cov = Eigen::Matrix<double, 6, 6>::Zero();
   BaselineModel baseline;
   MleResult mle;  // estimate, covariances, Ceres figures
   double mean_spanning_angle_deg = 0;

@@ -8,11 +8,14 @@
 #include <fstream>
 #include <map>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <sstream>
 #include <stdexcept>
 
 #include "mocks/rig/truth_io.h"
+#include "processing/geometry/mirror_frame.h"
 #include "processing/geometry/plane_line.h"
+#include "processing/solver/home_frame.h"
 #include "sessions/interchange/interchange_io.h"
 
 namespace msmcal::orchestrator {
@@ -173,6 +176,7 @@ SessionReport BuildSessionReport(const fs::path& dir,
     rep.skipped.push_back("comparison with truth: no truth/ folder (not a simulated session)");
 
   std::vector<std::string> plots;
+  std::optional<geometry::Rigid3d> truth_frame;  // truth's {0} in the solver's convention
   // Table I: planes vs truth, validation.
   if (fs::exists(res / "mirror_planes.csv") && fs::exists(res / "summary.json")) {
     rep.have_planes = true;
@@ -193,6 +197,14 @@ SessionReport BuildSessionReport(const fs::path& dir,
     if (have_truth) {
       std::map<int, dataset::MirrorPlaneRow> by_j;
       for (const auto& r : truth.mirror_planes) by_j[r.j] = r;
+      // Poses are compared in one convention: the truth's {0} rebuilt as the solver builds it
+      // (origin on the true neutral plane, placed by the true planes of the same triggers;
+      // processing/solver/home_frame.h, docs/solver.md).
+      std::vector<geometry::Plane> true_scan;
+      for (const auto& p : planes)
+        if (auto it = by_j.find(p.j); it != by_j.end())
+          true_scan.push_back(it->second.plane_in_world);
+      truth_frame = solver::ConventionalTruthFrame(truth.world_from_mirror0, true_scan);
       std::vector<double> en, ea, eb, et;
       PlotSeries est{"estimated", {}, {}, false, "#d62728"}, tru{"truth", {}, {}, false, "#2ca02c"};
       for (const auto& p : planes) {
@@ -200,11 +212,13 @@ SessionReport BuildSessionReport(const fs::path& dir,
         if (it == by_j.end()) continue;
         en.push_back(geometry::AngleBetween(p.plane_in_world.n, it->second.plane_in_world.n) *
                      180.0 / M_PI);
-        ea.push_back(p.alpha_deg - it->second.alpha_deg);
-        eb.push_back(p.beta_deg - it->second.beta_deg);
-        et.push_back(p.trans_mm - it->second.trans_mm);
-        tru.x.push_back(it->second.alpha_deg);
-        tru.y.push_back(it->second.beta_deg);
+        const geometry::MirrorPose t =
+            geometry::PoseFromWorldPlane(*truth_frame, it->second.plane_in_world);
+        ea.push_back(p.alpha_deg - t.alpha_rad * 180.0 / M_PI);
+        eb.push_back(p.beta_deg - t.beta_rad * 180.0 / M_PI);
+        et.push_back(p.trans_mm - t.trans_mm);
+        tru.x.push_back(t.alpha_rad * 180.0 / M_PI);
+        tru.y.push_back(t.beta_rad * 180.0 / M_PI);
         est.x.push_back(p.alpha_deg);
         est.y.push_back(p.beta_deg);
       }
@@ -271,7 +285,20 @@ SessionReport BuildSessionReport(const fs::path& dir,
       const auto rows = ReadNumericCsv(res / "hall_poses.csv");
       const double period = truth.hall.pattern_period_s > 0 ? truth.hall.pattern_period_s
                                                             : truth.pose_trajectory.back().t_s;
-      const auto& tr = truth.pose_trajectory;
+      // The true trajectory in the convention the Hall model was trained in (the solver's {0},
+      // see above); without the solver's planes, in the simulator's own {0}.
+      std::vector<sim::PoseSample> tr = truth.pose_trajectory;
+      if (truth_frame) {
+        for (auto& p : tr) {
+          const geometry::Plane plane = geometry::WorldPlaneFromPose(
+              truth.world_from_mirror0,
+              {p.alpha_deg * M_PI / 180.0, p.beta_deg * M_PI / 180.0, p.trans_mm});
+          const geometry::MirrorPose q = geometry::PoseFromWorldPlane(*truth_frame, plane);
+          p.alpha_deg = q.alpha_rad * 180.0 / M_PI;
+          p.beta_deg = q.beta_rad * 180.0 / M_PI;
+          p.trans_mm = q.trans_mm;
+        }
+      }
       const double dt = tr.size() > 1 ? tr[1].t_s - tr[0].t_s : 1;
       std::vector<double> ea, eb, et;
       PlotSeries pa{"Hall prediction alpha", {}, {}, false, "#d62728"};
