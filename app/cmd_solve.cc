@@ -24,7 +24,8 @@ namespace fs = std::filesystem;
 
 struct SolveArgs {
   std::string dir;
-  int threads = 1;
+  int threads = 2;
+  int ceres_threads = 1;
   uint64_t seed = 1;
 };
 
@@ -90,7 +91,8 @@ void RunSolve(const SolveArgs& args) {
   const fs::path dir(args.dir);
   const dataset::Recording rec = interchange::ReadRecording(dir);
   solver::PipelineOptions options;
-  options.mle.num_threads = args.threads;
+  options.image_threads = args.threads;
+  options.mle.num_threads = args.ceres_threads;
   options.seed = args.seed;
   const auto t0 = std::chrono::steady_clock::now();
   const solver::SolveOutput out = solver::SolveRecording(rec, FolderLoader(dir), options);
@@ -272,7 +274,15 @@ void AddSolveCommands(CLI::App& app) {
   auto* solve = app.add_subcommand("solve", "Estimate mirror poses from an interchange folder");
   solve->add_option("DIR", solve_args->dir, "Interchange folder (results/ is written there)")
       ->required();
-  solve->add_option("--threads", solve_args->threads, "Ceres threads")->check(CLI::PositiveNumber);
+  solve
+      ->add_option("--threads", solve_args->threads,
+                   "Images measured in parallel (the results do not depend on it)")
+      ->check(CLI::PositiveNumber);
+  solve
+      ->add_option("--ceres-threads", solve_args->ceres_threads,
+                   "Ceres threads (> 1 is faster on large problems, but then the last digits of "
+                   "the results vary from run to run)")
+      ->check(CLI::PositiveNumber);
   solve->add_option("--seed", solve_args->seed, "Seed of the trigger-assignment RANSAC");
   solve->callback([solve_args]() { RunSolve(*solve_args); });
 

@@ -9,7 +9,9 @@
 #include <Eigen/SparseCore>
 #include <array>
 #include <cmath>
+#include <cstddef>
 #include <memory>
+#include <memory_resource>
 #include <sstream>
 
 namespace msmcal::solver {
@@ -202,10 +204,23 @@ struct ReflectCost {
 
 // One Ceres problem with charts centred on `ref`.
 struct Built {
+  Built(size_t n_tf, size_t n_beam, size_t n_plane)
+      : storage(n_tf * sizeof(std::array<double, 6>) + n_beam * sizeof(std::array<double, 4>) +
+                n_plane * sizeof(std::array<double, 3>) + 3 * alignof(std::max_align_t)),
+        arena(storage.data(), storage.size(), std::pmr::null_memory_resource()),
+        tf(n_tf, std::array<double, 6>{}, &arena),
+        beam(n_beam, std::array<double, 4>{}, &arena),
+        plane(n_plane, std::array<double, 3>{}, &arena) {}
   ceres::Problem problem;
-  std::vector<std::array<double, 6>> tf;  // c1w, c2w, c1s...
-  std::vector<std::array<double, 4>> beam;
-  std::vector<std::array<double, 3>> plane;
+  // The parameter blocks live in one buffer, in a fixed order (tf, beam, plane): Ceres orders
+  // the blocks of an elimination group by address, so addresses that depended on the heap's
+  // history (e.g. on which thread measured which image) made the last digits of a solve vary
+  // from run to run.
+  std::vector<std::byte> storage;
+  std::pmr::monotonic_buffer_resource arena;
+  std::pmr::vector<std::array<double, 6>> tf;  // c1w, c2w, c1s...
+  std::pmr::vector<std::array<double, 4>> beam;
+  std::pmr::vector<std::array<double, 3>> plane;
   // Residual blocks per family (MleResult::Family order).
   std::array<std::vector<ceres::ResidualBlockId>, kNumFamilies> ids;
   Estimate ref;
@@ -214,11 +229,8 @@ struct Built {
 // `scale[f]`: variance factor applied to family f's input covariance.
 std::unique_ptr<Built> Build(const Observations& obs, const Estimate& ref,
                              const std::array<double, kNumFamilies>& scale) {
-  auto b = std::make_unique<Built>();
+  auto b = std::make_unique<Built>(2 + obs.num_poses, obs.num_beams, obs.num_planes);
   b->ref = ref;
-  b->tf.assign(2 + obs.num_poses, std::array<double, 6>{});
-  b->beam.assign(obs.num_beams, std::array<double, 4>{});
-  b->plane.assign(obs.num_planes, std::array<double, 3>{});
   const Cam cam(obs.camera);
   const double corner_var = obs.corner_sigma_px * obs.corner_sigma_px;
   for (const auto& cs : obs.corners) {

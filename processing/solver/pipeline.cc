@@ -3,12 +3,16 @@
 #include <Eigen/Dense>
 #include <Eigen/Eigenvalues>
 #include <algorithm>
+#include <atomic>
 #include <cmath>
+#include <exception>
 #include <map>
 #include <numeric>
+#include <opencv2/core/utility.hpp>
 #include <random>
 #include <set>
 #include <sstream>
+#include <thread>
 
 #include "processing/geometry/mirror_frame.h"
 #include "processing/solver/home_frame.h"
@@ -140,6 +144,8 @@ std::string PipelineOptions::Validate() const {
     s << "ransac_iterations = " << ransac_iterations << " must be >= 1";
   else if (!(ransac_inlier_deg > 0))
     s << "ransac_inlier_deg = " << ransac_inlier_deg << " must be > 0";
+  else if (image_threads < 1)
+    s << "image_threads = " << image_threads << " must be >= 1";
   return s.str();
 }
 
@@ -249,6 +255,71 @@ std::vector<int> AssignTriggers(const std::vector<TriggerFrame>& frames,
   return slot;
 }
 
+namespace {
+
+// What one image shows: the boards asked for (in order) and the laser dots. Measured for all
+// images before the solve, `threads` images at a time; each image is measured on one thread
+// and stored by its index, so the outcome does not depend on the scheduling.
+struct ImageMeasurement {
+  std::vector<std::optional<vision::CheckerboardDetection>> boards;
+  std::vector<vision::Dot> dots;  // only when the last board asked for was found
+};
+
+// Turns OpenCV's own parallel loops off while alive (restores the previous setting): their
+// results depend on the number of CPUs and on the load (stripe boundaries and completion
+// order), and a solve must give the same digits on every run.
+class OpenCvSerial {
+ public:
+  OpenCvSerial() : previous_(cv::getNumThreads()) { cv::setNumThreads(0); }
+  ~OpenCvSerial() { cv::setNumThreads(previous_); }
+  OpenCvSerial(const OpenCvSerial&) = delete;
+  OpenCvSerial& operator=(const OpenCvSerial&) = delete;
+
+ private:
+  int previous_;
+};
+
+std::vector<ImageMeasurement> MeasureImages(
+    const std::vector<std::string>& files,
+    const std::vector<std::vector<vision::BoardSize>>& boards, const ImageLoader& load,
+    const vision::DotOptions& dot_options, const vision::CheckerboardOptions& board_options,
+    int threads) {
+  std::vector<ImageMeasurement> out(files.size());
+  std::vector<std::exception_ptr> errors(files.size());
+  std::atomic<size_t> next{0};
+  auto work = [&] {
+    for (size_t i = next++; i < files.size(); i = next++) {
+      try {
+        // OpenCV's detectors draw from the calling thread's cv::theRNG(): reseed it per image so
+        // that an image's measurement does not depend on which images its thread measured
+        // before.
+        cv::theRNG() = cv::RNG(0x6d736d63616cULL);
+        const cv::Mat img = load(files[i]);
+        if (img.empty()) throw SolveError(files[i] + ": cannot read the image");
+        ImageMeasurement& m = out[i];
+        if (boards[i].size() == 1)
+          m.boards = {vision::DetectCheckerboard(img, boards[i][0], board_options)};
+        else
+          m.boards = vision::DetectCheckerboards(img, boards[i], board_options);
+        if (!m.boards.empty() && m.boards.back()) m.dots = vision::DetectDots(img, dot_options);
+      } catch (...) {
+        errors[i] = std::current_exception();
+      }
+    }
+  };
+  const size_t n =
+      std::min<size_t>(static_cast<size_t>(threads), std::max<size_t>(1, files.size()));
+  std::vector<std::thread> pool;
+  for (size_t t = 1; t < n; ++t) pool.emplace_back(work);
+  work();
+  for (auto& t : pool) t.join();
+  for (const auto& e : errors)
+    if (e) std::rethrow_exception(e);  // the first failing image in plan order
+  return out;
+}
+
+}  // namespace
+
 SolveOutput SolveRecording(const dataset::Recording& rec, const ImageLoader& load,
                            const PipelineOptions& o) {
   if (const std::string e = o.Validate(); !e.empty()) throw SolveError("PipelineOptions: " + e);
@@ -287,11 +358,27 @@ SolveOutput SolveRecording(const dataset::Recording& rec, const ImageLoader& loa
   const auto sliding_pts = BoardPoints(rec.sliding_board);
   const vision::BoardSize world_size{rec.world_board.cols, rec.world_board.rows};
   const vision::BoardSize sliding_size{rec.sliding_board.cols, rec.sliding_board.rows};
-  auto load_image = [&](const std::string& file) {
-    cv::Mat img = load(file);
-    if (img.empty()) throw fail(file + ": cannot read the image");
-    return img;
-  };
+  // Boards and dots of every image first (parallel over images, OpenCV serial inside).
+  std::vector<ImageMeasurement> measured;
+  {
+    const OpenCvSerial serial;
+    std::vector<std::string> files;
+    std::vector<std::vector<vision::BoardSize>> asks;
+    for (const auto& f : rec.step1) {
+      files.push_back(f.file);
+      asks.push_back({world_size, sliding_size});
+    }
+    for (const auto& f : rec.step2) {
+      files.push_back(f.file);
+      asks.push_back({world_size});
+    }
+    try {
+      measured = MeasureImages(files, asks, load, o.dots, o.boards, o.image_threads);
+    } catch (const SolveError& e) {
+      throw fail(e.what());
+    }
+  }
+  size_t next_measured = 0;
   auto to_obs = [](const vision::Dot& d) { return PixelObs{d.px, d.cov_px2}; };
 
   // ---------------- Step 1: sliding boards, beams ----------------
@@ -309,14 +396,14 @@ SolveOutput SolveRecording(const dataset::Recording& rec, const ImageLoader& loa
   std::optional<Rigid3d> c1_from_world;
   size_t c1_corners = 0;
   for (const auto& f : rec.step1) {
-    const cv::Mat img = load_image(f.file);
-    const auto boards = vision::DetectCheckerboards(img, {world_size, sliding_size}, o.boards);
+    const ImageMeasurement& m = measured[next_measured++];
+    const auto& boards = m.boards;
     if (!boards[1]) {
       out.dropped.push_back(
           {f.file, "sliding board (" + SizeText(rec.sliding_board) + ") not found"});
       continue;
     }
-    auto dots = DotsOnBoard(vision::DetectDots(img, o.dots), *boards[1], sliding_size);
+    auto dots = DotsOnBoard(m.dots, *boards[1], sliding_size);
     if (dots.size() > f.beams.size()) {
       // Surplus blobs (checkerboard-junction residue): keep the roundest, say so.
       auto elongation = [](const vision::Dot& d) {
@@ -465,14 +552,14 @@ SolveOutput SolveRecording(const dataset::Recording& rec, const ImageLoader& loa
   std::vector<S2> s2;
   std::optional<Rigid3d> c2_from_world;
   for (const auto& f : rec.step2) {
-    const cv::Mat img = load_image(f.file);
-    const auto board = vision::DetectCheckerboard(img, world_size, o.boards);
+    const ImageMeasurement& m = measured[rec.step1.size() + (&f - rec.step2.data())];
+    const auto& board = m.boards[0];
     if (!board) {
       out.dropped.push_back({f.file, "world board (" + SizeText(rec.world_board) + ") not found"});
       continue;
     }
     const size_t triggers = f.kind == Step2Kind::kNeutral ? 1 : f.triggers.size();
-    const auto dots = DotsOnBoard(vision::DetectDots(img, o.dots), *board, world_size);
+    const auto dots = DotsOnBoard(m.dots, *board, world_size);
     if (dots.size() != triggers * f.beams.size()) {
       out.dropped.push_back(
           {f.file, "found " + std::to_string(dots.size()) + " laser dots, expected " +

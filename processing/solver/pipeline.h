@@ -29,7 +29,7 @@ class SolveError : public std::runtime_error {
 };
 
 // Loads an image by its file name as written in session.yaml ("step1/0000.png"). Returns an empty
-// Mat if it cannot be read.
+// Mat if it cannot be read. Called from several threads at once (PipelineOptions::image_threads).
 using ImageLoader = std::function<cv::Mat(const std::string& file)>;
 
 struct PipelineOptions {
@@ -42,6 +42,10 @@ struct PipelineOptions {
   int ransac_iterations = 3000;
   double ransac_inlier_deg = 0.4;
   uint64_t seed = 1;
+  // Images are measured (boards, dots) this many at a time, each on its own thread with
+  // OpenCV's own parallel loops off for the duration of the solve (they made the results depend
+  // on the CPU count and the machine's load). The results do not depend on this number.
+  int image_threads = 2;
   std::string Validate() const;
 };
 
