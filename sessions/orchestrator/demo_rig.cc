@@ -44,12 +44,12 @@ DemoRig::~DemoRig() {
 
 int DemoRig::generators_port(int unit) const { return generators_->port(unit); }
 
-gen::RigGeneratorConfig DemoRig::GeneratorConfig() const {
+gen::RigGeneratorConfig DemoGeneratorConfig(const sim::SimOptions& sim, int port1, int port2) {
   gen::RigGeneratorConfig c;
-  const auto& m = options_.sim.mirror;
+  const auto& m = sim.mirror;
   c.unit1.name = "generator1";
   c.unit1.link.host = "127.0.0.1";
-  c.unit1.link.port = generators_->port(1);
+  c.unit1.link.port = port1;
   c.unit1.limits[0] = {"fast_coil",
                        2.0 * m.fast.amplitude_vpp,
                        0.5,
@@ -64,7 +64,7 @@ gen::RigGeneratorConfig DemoRig::GeneratorConfig() const {
                        1.0};
   c.unit2.name = "generator2";
   c.unit2.link.host = "127.0.0.1";
-  c.unit2.link.port = generators_->port(2);
+  c.unit2.link.port = port2;
   c.unit2.limits[0] = {"laser_trigger", 5.0, 2.5, 0.01, 1000.0, 0.01};
   c.unit2.limits[1] = {"mcu_clock", 3.3, 1.65, 0.01, 1000.0, 1.0};
   c.signals.fast = {m.fast.frequency_hz, m.fast.amplitude_vpp, 0.0, m.fast.phase_deg};
@@ -73,6 +73,10 @@ gen::RigGeneratorConfig DemoRig::GeneratorConfig() const {
   c.signals.laser = {0.0, 5.0, gen::kHighZ};
   c.signals.clock = {0.0, 3.3, gen::kHighZ};
   return c;
+}
+
+gen::RigGeneratorConfig DemoRig::GeneratorConfig() const {
+  return DemoGeneratorConfig(options_.sim, generators_->port(1), generators_->port(2));
 }
 
 OrchestratorOptions DemoRig::MakeOrchestratorOptions(const std::filesystem::path& out_dir) const {

@@ -29,6 +29,11 @@ struct DemoRigOptions {
   std::string Validate() const;
 };
 
+// The generator configuration of the demo rig for `sim`, with the mock units on loopback `port1`
+// and `port2`: limits around the simulated mirror's drive, the simulator's drive frequencies and
+// amplitudes. Also what a replay of a demo session plays (sessions/replay).
+gen::RigGeneratorConfig DemoGeneratorConfig(const sim::SimOptions& sim, int port1, int port2);
+
 class DemoRig {
  public:
   // Builds the simulator and starts the generator pair and the camera. Throws

@@ -95,39 +95,6 @@ RecordedIdentity IdentityFromTranscript(const std::string& transcript, const std
   return r;
 }
 
-gen::RigGeneratorConfig DemoGeneratorConfig(const sim::SimOptions& sim, int port1, int port2) {
-  // Keep in step with DemoRig::GeneratorConfig() (sessions/orchestrator/demo_rig.cc): the replay
-  // acceptance test compares the generators' transcripts byte for byte.
-  gen::RigGeneratorConfig c;
-  const auto& m = sim.mirror;
-  c.unit1.name = "generator1";
-  c.unit1.link.host = "127.0.0.1";
-  c.unit1.link.port = port1;
-  c.unit1.limits[0] = {"fast_coil",
-                       2.0 * m.fast.amplitude_vpp,
-                       0.5,
-                       0.5 * m.fast.frequency_hz,
-                       1.5 * m.fast.frequency_hz,
-                       1.0};
-  c.unit1.limits[1] = {"slow_coil",
-                       2.0 * m.slow.amplitude_vpp,
-                       0.5,
-                       0.5 * m.slow.frequency_hz,
-                       1.5 * m.slow.frequency_hz,
-                       1.0};
-  c.unit2.name = "generator2";
-  c.unit2.link.host = "127.0.0.1";
-  c.unit2.link.port = port2;
-  c.unit2.limits[0] = {"laser_trigger", 5.0, 2.5, 0.01, 1000.0, 0.01};
-  c.unit2.limits[1] = {"mcu_clock", 3.3, 1.65, 0.01, 1000.0, 1.0};
-  c.signals.fast = {m.fast.frequency_hz, m.fast.amplitude_vpp, 0.0, m.fast.phase_deg};
-  c.signals.slow = {m.slow.frequency_hz, m.slow.amplitude_vpp, 0.0, m.slow.phase_deg};
-  c.signals.coil_load_ohm = 50.0;
-  c.signals.laser = {0.0, 5.0, gen::kHighZ};
-  c.signals.clock = {0.0, 3.3, gen::kHighZ};
-  return c;
-}
-
 RigSetup SetupFromSourceRun(const SourceRun& run) {
   RigSetup s;
   if (run.kind == "demo") {

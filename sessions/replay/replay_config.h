@@ -15,6 +15,7 @@
 #include "drivers/generator/rig_config.h"
 #include "drivers/hall_mcu/hall_sensor.h"
 #include "mocks/rig/sim_options.h"
+#include "sessions/orchestrator/demo_rig.h"
 
 namespace msmcal::replay {
 
@@ -52,9 +53,8 @@ struct RecordedIdentity {
 };
 RecordedIdentity IdentityFromTranscript(const std::string& transcript, const std::string& unit);
 
-// The generator configuration DemoRig::GeneratorConfig() builds for `sim` (same limits and
-// signals), with the links on 127.0.0.1 at `port1` / `port2`.
-gen::RigGeneratorConfig DemoGeneratorConfig(const sim::SimOptions& sim, int port1, int port2);
+// The demo rig's generator configuration (sessions/orchestrator/demo_rig.h).
+using orchestrator::DemoGeneratorConfig;
 
 // The setup of a source run: for "demo" what DemoRig::MakeOrchestratorOptions sets; for "lab"
 // the rig configuration's `generators:` and (when present) `hall_mcu:` sections. The background

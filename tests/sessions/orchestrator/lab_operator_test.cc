@@ -19,6 +19,7 @@
 #include "sessions/orchestrator/console_operator.h"
 #include "sessions/orchestrator/demo_rig.h"
 #include "sessions/orchestrator/orchestrator.h"
+#include "tests/testing/tiny_sim.h"
 
 namespace msmcal::orchestrator {
 namespace {
@@ -53,13 +54,7 @@ class LabRig : public RigOperator {
 
 TEST(LabOperator, AFrameCountsOnlyAfterTheOperatorConfirmedTheSetup) {
   DemoRigOptions ro;
-  ro.sim.seed = 3;
-  ro.sim.step1.poses = 4;
-  ro.sim.step2.neutral_frames = 1;
-  ro.sim.step2.fast_only_frames = 2;
-  ro.sim.triggers.max_triggers = 18;
-  ro.sim.hall.background_duration_s = 2.0;
-  ro.sim.hall.actual_duration_s = 2.0;
+  ro.sim = msmcal::testing::TinySim();
   DemoRig rig(ro);
   const dataset::Recording plan = rig.Plan();
   const fs::path dir = fs::path(::testing::TempDir()) / "lab_operator";

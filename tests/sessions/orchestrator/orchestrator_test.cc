@@ -20,6 +20,7 @@
 #include "sessions/orchestrator/demo_rig.h"
 #include "sessions/orchestrator/quality_gate.h"
 #include "sessions/orchestrator/report.h"
+#include "tests/testing/tiny_sim.h"
 
 namespace msmcal::orchestrator {
 namespace {
@@ -27,17 +28,7 @@ namespace {
 namespace fs = std::filesystem;
 
 // Small but solvable: fewer poses, triggers and frames, short Hall recordings.
-sim::SimOptions TinySim() {
-  sim::SimOptions o;
-  o.seed = 3;
-  o.step1.poses = 4;
-  o.step2.neutral_frames = 1;
-  o.step2.fast_only_frames = 2;
-  o.triggers.max_triggers = 18;
-  o.hall.background_duration_s = 2.0;
-  o.hall.actual_duration_s = 2.0;
-  return o;
-}
+using msmcal::testing::TinySim;
 
 fs::path FreshDir(const std::string& name) {
   const fs::path dir = fs::path(::testing::TempDir()) / ("orch_" + name);

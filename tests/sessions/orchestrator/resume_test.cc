@@ -15,23 +15,14 @@
 #include "sessions/orchestrator/demo_rig.h"
 #include "sessions/orchestrator/orchestrator.h"
 #include "sessions/store/session_store.h"
+#include "tests/testing/tiny_sim.h"
 
 namespace msmcal::orchestrator {
 namespace {
 
 namespace fs = std::filesystem;
 
-sim::SimOptions TinySim() {
-  sim::SimOptions o;
-  o.seed = 3;
-  o.step1.poses = 4;
-  o.step2.neutral_frames = 1;
-  o.step2.fast_only_frames = 2;
-  o.triggers.max_triggers = 18;
-  o.hall.background_duration_s = 2.0;
-  o.hall.actual_duration_s = 2.0;
-  return o;
-}
+using msmcal::testing::TinySim;
 
 fs::path FreshDir(const std::string& name) {
   const fs::path dir = fs::path(::testing::TempDir()) / ("resume_" + name);

@@ -60,44 +60,6 @@ void Replay(const fs::path& source, const fs::path& out) {
   orchestrator::RunSession(o, rig.Plan(), rig.world(), nullptr);
 }
 
-TEST(ReplayRig, DemoGeneratorConfigIsTheDemoRigs) {
-  orchestrator::DemoRigOptions ro;
-  ro.sim = TinySim();
-  ro.sim.mirror.fast.amplitude_vpp *= 1.1;
-  orchestrator::DemoRig rig(ro);
-  const gen::RigGeneratorConfig want = rig.GeneratorConfig();
-  const gen::RigGeneratorConfig got =
-      DemoGeneratorConfig(ro.sim, rig.generators_port(1), rig.generators_port(2));
-  for (auto [w, g] : {std::pair{&want.unit1, &got.unit1}, std::pair{&want.unit2, &got.unit2}}) {
-    EXPECT_EQ(g->name, w->name);
-    EXPECT_EQ(g->link.host, w->link.host);
-    EXPECT_EQ(g->link.port, w->link.port);
-    for (size_t ch = 0; ch < 2; ++ch) {
-      SCOPED_TRACE(w->name + " channel " + std::to_string(ch + 1));
-      EXPECT_EQ(g->limits[ch].role, w->limits[ch].role);
-      EXPECT_EQ(g->limits[ch].max_vpp, w->limits[ch].max_vpp);
-      EXPECT_EQ(g->limits[ch].max_abs_offset_v, w->limits[ch].max_abs_offset_v);
-      EXPECT_EQ(g->limits[ch].min_frequency_hz, w->limits[ch].min_frequency_hz);
-      EXPECT_EQ(g->limits[ch].max_frequency_hz, w->limits[ch].max_frequency_hz);
-      EXPECT_EQ(g->limits[ch].max_duty, w->limits[ch].max_duty);
-    }
-  }
-  for (auto [w, g] : {std::pair{&want.signals.fast, &got.signals.fast},
-                      std::pair{&want.signals.slow, &got.signals.slow}}) {
-    EXPECT_EQ(g->frequency_hz, w->frequency_hz);
-    EXPECT_EQ(g->amplitude_vpp, w->amplitude_vpp);
-    EXPECT_EQ(g->offset_v, w->offset_v);
-    EXPECT_EQ(g->phase_deg, w->phase_deg);
-  }
-  EXPECT_EQ(got.signals.coil_load_ohm, want.signals.coil_load_ohm);
-  for (auto [w, g] : {std::pair{&want.signals.laser, &got.signals.laser},
-                      std::pair{&want.signals.clock, &got.signals.clock}}) {
-    EXPECT_EQ(g->low_v, w->low_v);
-    EXPECT_EQ(g->high_v, w->high_v);
-    EXPECT_EQ(g->load_ohm, w->load_ohm);
-  }
-}
-
 TEST(ReplayRig, AReplayAndAReplayOfItReproduceTheAcquisition) {
   const fs::path a = FreshDir("a"), b = FreshDir("b"), c = FreshDir("c");
   {
