@@ -1,6 +1,7 @@
 // Data commands: `msmcal import`, `msmcal export`, `msmcal sessions list|show` and
 // `msmcal interchange check` (the interchange format and the session store, issues 2 and 9).
 #include <CLI/CLI.hpp>
+#include <algorithm>
 #include <cstdio>
 #include <iomanip>
 #include <iostream>
@@ -160,20 +161,38 @@ void AddSessions(CLI::App& app) {
     }
     const store::SystemClock clock;
     const auto entries = store::ListSessions(l->root, filter, clock);
-    std::printf("%-36s %-20s %-10s %-10s %-18s %-18s %6s %10s\n", "SESSION", "CREATED (UTC)", "RIG",
-                "MIRROR", "FAST Hz/Vpp", "SLOW Hz/Vpp", "FRAMES", "RESULT RMS");
+    // Columns as wide as their widest cell. RESULT: the headline RMS of results/summary.json
+    // (the validation beam's error in px for `msmcal solve` results).
+    std::vector<std::vector<std::string>> rows = {{"SESSION", "CREATED (UTC)", "RIG", "MIRROR",
+                                                   "FAST Hz/Vpp", "SLOW Hz/Vpp", "FRAMES",
+                                                   "RESULT RMS"}};
     for (const auto& e : entries) {
       if (!e.error.empty()) {
-        std::printf("%-36s unreadable: %s\n", e.id.c_str(), e.error.c_str());
+        rows.push_back({e.id, "unreadable: " + e.error});
         continue;
       }
-      const std::string fast = Num(e.fast_frequency_hz) + "/" + Num(e.fast_amplitude_vpp);
-      const std::string slow = Num(e.slow_frequency_hz) + "/" + Num(e.slow_amplitude_vpp);
-      const std::string rms = e.result_rms ? Num(*e.result_rms) : "-";
-      std::printf("%-36s %-20s %-10s %-10s %-18s %-18s %6lld %10s\n", e.id.c_str(),
-                  store::FormatUtc(e.created_ns).c_str(), e.rig_id.empty() ? "-" : e.rig_id.c_str(),
-                  e.mirror_id.empty() ? "-" : e.mirror_id.c_str(), fast.c_str(), slow.c_str(),
-                  static_cast<long long>(e.frames), rms.c_str());
+      char rms[32] = "-";
+      if (e.result_rms) std::snprintf(rms, sizeof(rms), "%.4g", *e.result_rms);
+      rows.push_back({e.id, store::FormatUtc(e.created_ns), e.rig_id.empty() ? "-" : e.rig_id,
+                      e.mirror_id.empty() ? "-" : e.mirror_id,
+                      Num(e.fast_frequency_hz) + "/" + Num(e.fast_amplitude_vpp),
+                      Num(e.slow_frequency_hz) + "/" + Num(e.slow_amplitude_vpp),
+                      std::to_string(e.frames), rms});
+    }
+    std::vector<size_t> width(rows[0].size(), 0);
+    for (const auto& r : rows)
+      if (r.size() == width.size())
+        for (size_t c = 0; c < r.size(); ++c) width[c] = std::max(width[c], r[c].size());
+    for (const auto& r : rows) {
+      std::string line;
+      for (size_t c = 0; c < r.size(); ++c) {
+        line += r[c];
+        if (c + 1 < r.size() && r.size() == width.size())
+          line += std::string(width[c] - r[c].size() + 2, ' ');
+        else if (c + 1 < r.size())
+          line += "  ";
+      }
+      std::printf("%s\n", line.c_str());
     }
     std::printf("%zu session(s) under %s\n", entries.size(), l->root.c_str());
   });
