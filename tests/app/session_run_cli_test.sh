@@ -55,4 +55,17 @@ if "$msmcal" resume "$dir/s1" < /dev/null > "$dir/err2" 2>&1; then
 fi
 grep -q "lab session" "$dir/err2"
 grep -q "rig check failed, not starting" "$dir/err2"
+# The catalogue lists the refused session (no results yet) in aligned columns.
+"$msmcal" sessions list --root "$dir" > "$dir/list"
+cat "$dir/list"
+/usr/bin/python3 - "$dir/list" <<'PY'
+import sys
+lines = open(sys.argv[1]).read().splitlines()
+header, rows = lines[0], [l for l in lines[1:-1]]
+assert lines[-1].startswith("1 session(s) under"), lines[-1]
+assert len(rows) == 1 and rows[0].startswith("s1 "), rows
+col = header.index("RESULT RMS")
+assert rows[0][col:].strip() == "-", rows[0]   # not solved
+assert rows[0][header.index("FRAMES"):].split()[0] == "0", rows[0]
+PY
 echo "session run / resume refusals: ok"
