@@ -9,6 +9,7 @@
 #include <mutex>
 #include <nlohmann/json.hpp>
 #include <opencv2/core.hpp>
+#include <optional>
 #include <stdexcept>
 
 #include "acquisition/hall/hall_csv_writer.h"
@@ -71,10 +72,24 @@ class SessionLog {
   ~SessionLog() {
     if (file_) std::fclose(file_);
   }
+  // Generator time: seconds since the generators' start trigger (*TRG to unit 1), on the host's
+  // steady clock, so to within the LAN latency; none while the outputs are off.
+  void SetGeneratorEpoch(std::optional<std::chrono::steady_clock::time_point> epoch) {
+    std::lock_guard<std::mutex> lock(mu_);
+    generator_epoch_ = epoch;
+  }
   void Line(const std::string& text, const char* kind = "info") {
+    std::optional<double> generator_time_s;
+    {
+      std::lock_guard<std::mutex> lock(mu_);
+      if (generator_epoch_)
+        generator_time_s =
+            std::chrono::duration<double>(std::chrono::steady_clock::now() - *generator_epoch_)
+                .count();
+    }
     if (journal_) {
       try {
-        journal_->AddEvent(kind, text);
+        journal_->AddEvent(kind, text, generator_time_s);
       } catch (const std::exception& e) {
         // The text file below still has it; say so once there.
         std::lock_guard<std::mutex> lock(mu_);
@@ -98,6 +113,7 @@ class SessionLog {
   ProgressFn progress_;
   store::SessionStore* journal_;
   std::chrono::steady_clock::time_point start_;
+  std::optional<std::chrono::steady_clock::time_point> generator_epoch_;
 };
 
 // generators_transcript.txt: one line per SCPI exchange ("unit1 > *RST", "unit1 < 1"), without
@@ -112,11 +128,17 @@ class TranscriptFile {
   ~TranscriptFile() { std::fclose(file_); }
   scpi::TranscriptSink Sink(const std::string& unit) {
     return [this, unit](const scpi::TranscriptEntry& e) {
-      std::lock_guard<std::mutex> lock(mu_);
-      std::fprintf(file_, "%s %c %s\n", unit.c_str(), e.to_instrument ? '>' : '<', e.text.c_str());
-      std::fflush(file_);
+      {
+        std::lock_guard<std::mutex> lock(mu_);
+        std::fprintf(file_, "%s %c %s\n", unit.c_str(), e.to_instrument ? '>' : '<',
+                     e.text.c_str());
+        std::fflush(file_);
+      }
+      if (on_trigger_ && unit == "unit1" && e.to_instrument && e.text == "*TRG") on_trigger_();
     };
   }
+  // Called when the start trigger goes to unit 1 (the generators' time zero).
+  void OnStartTrigger(std::function<void()> f) { on_trigger_ = std::move(f); }
   void Comment(const std::string& text) {
     std::lock_guard<std::mutex> lock(mu_);
     std::fprintf(file_, "# %s\n", text.c_str());
@@ -126,6 +148,7 @@ class TranscriptFile {
  private:
   std::mutex mu_;
   std::FILE* file_ = nullptr;
+  std::function<void()> on_trigger_;
 };
 
 cv::Mat FrameToMat(const camera::Frame& frame) {
@@ -505,6 +528,7 @@ SessionResult RunSession(const OrchestratorOptions& options, const dataset::Reco
   fs::create_directories(out / "hall");
   SessionLog log(out / "session_log.txt", progress, journal.get());
   TranscriptFile transcript(out / "generators_transcript.txt");
+  transcript.OnStartTrigger([&log] { log.SetGeneratorEpoch(std::chrono::steady_clock::now()); });
   SessionResult result;
   result.folder = out;
   result.resumed = options.resume;
@@ -560,6 +584,7 @@ SessionResult RunSession(const OrchestratorOptions& options, const dataset::Reco
   gen::RigGenerators rig(*inst.master, *inst.slave);
   auto safe_state = [&] {
     const bool ok = rig.SafeState();
+    log.SetGeneratorEpoch(std::nullopt);
     log.Line(ok ? "safe state: generator outputs off (confirmed)"
                 : "safe state: outputs off NOT confirmed by both generators",
              ok ? "info" : "error");

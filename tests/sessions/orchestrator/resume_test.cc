@@ -142,9 +142,22 @@ TEST(ResumeDeathTest, KilledInStep2ContinuesKeepingFramesAndThePartialHallRecord
   for (const auto& f : journal->Frames())
     EXPECT_NE(f.quality_json.find("\"dots_found\""), std::string::npos) << f.quality_json;
   bool resumed_event = false;
-  for (const auto& e : journal->Events())
+  int with_generator_time = 0;
+  for (const auto& e : journal->Events()) {
     resumed_event = resumed_event || e.message.find("RESUMED") != std::string::npos;
+    // Generator time: only while the outputs are on (from the start trigger to the safe state).
+    if (e.message.find("rig check") != std::string::npos ||
+        e.message.find("safe state") != std::string::npos) {
+      EXPECT_FALSE(e.generator_time_s) << e.message;
+    }
+    if (e.message.find("step 2: frame") != std::string::npos) {
+      ASSERT_TRUE(e.generator_time_s) << e.message;
+      EXPECT_GT(*e.generator_time_s, 0.0) << e.message;
+      ++with_generator_time;
+    }
+  }
   EXPECT_TRUE(resumed_event);
+  EXPECT_GT(with_generator_time, 0);
   EXPECT_GE(journal->Instruments().size(), 4u);  // two generators, camera, Hall MCU
   const std::string transcript = ReadText(dir / "generators_transcript.txt");
   EXPECT_NE(transcript.find("unit1 > *IDN?"), std::string::npos);
