@@ -9,6 +9,7 @@
 #include <map>
 #include <numeric>
 #include <opencv2/core/utility.hpp>
+#include <optional>
 #include <random>
 #include <set>
 #include <sstream>
@@ -27,6 +28,11 @@ using geometry::Rigid3d;
 
 constexpr double kRadToDeg = 180.0 / M_PI;
 constexpr double kDegToRad = M_PI / 180.0;
+// A step 1 dot farther than this from its beam's line (fitted to all its labelled dots) marks
+// its frame's dot-to-beam labels as wrong (a non-laser blob counted as a dot, or a swapped
+// permutation); the frame is dropped from the beam fit (docs/solver.md, "Step 1 label check").
+// Correctly labelled sliding-board dots sit ~0.05 mm from the line in simulation.
+constexpr double kMaxBeamLineResidualMm = 1.0;
 
 std::string SizeText(const dataset::BoardSpec& b) {
   return std::to_string(b.cols) + "x" + std::to_string(b.rows);
@@ -529,6 +535,52 @@ SolveOutput SolveRecording(const dataset::Recording& rec, const ImageLoader& loa
       beam_poses[s.beams[i]].push_back(s.pose);
     }
   }
+  // Label check: fit each beam to all its labelled dots; while the farthest dot exceeds
+  // kMaxBeamLineResidualMm, drop its whole frame's labels (a wrong label pulls the line but
+  // stays the farthest point) and refit. Dropped frames still serve the sliding board pose.
+  for (;;) {
+    std::vector<std::vector<Eigen::Vector3d>> pts(num_beams);
+    std::vector<std::set<int>> poses(num_beams);
+    for (const auto& s : s1)
+      for (size_t i = 0; i < s.dots.size(); ++i)
+        if (s.label[i] >= 0) {
+          pts[s.label[i]].push_back(s.dots_in_world[i]);
+          poses[s.label[i]].insert(s.pose);
+        }
+    std::vector<std::optional<Line>> fit(num_beams);
+    for (int b = 0; b < num_beams; ++b)
+      if (poses[b].size() >= 2) fit[b] = FitBeam(pts[b], sliding_z);
+    int worst_frame = -1, worst_beam = -1;
+    double worst = kMaxBeamLineResidualMm;
+    for (size_t k = 0; k < s1.size(); ++k)
+      for (size_t i = 0; i < s1[k].dots.size(); ++i) {
+        const int b = s1[k].label[i];
+        if (b < 0 || !fit[b]) continue;
+        const Line& l = *fit[b];
+        const double d = (s1[k].dots_in_world[i].cross(l.v) - l.m).norm() / l.v.norm();
+        if (d > worst) {
+          worst = d;
+          worst_frame = static_cast<int>(k);
+          worst_beam = b;
+        }
+      }
+    if (worst_frame < 0) break;
+    S1& bad = s1[worst_frame];
+    std::ostringstream why;
+    why << "its dot labelled beam " << beam_ids[worst_beam] << " lies " << worst
+        << " mm from that beam's line (> " << kMaxBeamLineResidualMm
+        << " mm): dot-to-beam labels inconsistent; frame used for the sliding board only";
+    out.dropped.push_back({bad.file, why.str()});
+    bad.label.assign(bad.dots.size(), -1);
+  }
+  for (auto& pts : beam_points) pts.clear();
+  for (auto& ps : beam_poses) ps.clear();
+  for (const auto& s : s1)
+    for (size_t i = 0; i < s.dots.size(); ++i)
+      if (s.label[i] >= 0) {
+        beam_points[s.label[i]].push_back(s.dots_in_world[i]);
+        beam_poses[s.label[i]].push_back(s.pose);
+      }
   for (const auto& s : s1)
     for (size_t i = 0; i < s.dots.size(); ++i)
       if (s.label[i] >= 0) obs.sliding_dots.push_back({s.pose, s.label[i], to_obs(s.dots[i])});
