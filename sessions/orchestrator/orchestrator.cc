@@ -187,30 +187,22 @@ RigCheckResult CheckRig(const OrchestratorOptions& options, const dataset::Recor
                         TranscriptFile* transcript = nullptr) {
   RigCheckResult r;
   // Generators: identity (on open), reference lock, signal design within limits.
-  try {
-    inst->master = gen::OpenKeysight33500(options.generators.unit1,
-                                          transcript ? transcript->Sink("unit1") : nullptr);
-    const scpi::Identity id = inst->master->Identify();
-    r.found.push_back(options.generators.unit1.name + ": " + id.model);
-    r.instruments.emplace_back(
-        options.generators.unit1.name,
-        id.manufacturer + " " + id.model + " " + id.serial + " " + id.firmware);
-  } catch (const std::exception& e) {
-    r.problems.push_back("generator 1 (" + options.generators.unit1.link.host + ":" +
-                         std::to_string(options.generators.unit1.link.port) + "): " + e.what());
-  }
-  try {
-    inst->slave = gen::OpenKeysight33500(options.generators.unit2,
-                                         transcript ? transcript->Sink("unit2") : nullptr);
-    const scpi::Identity id = inst->slave->Identify();
-    r.found.push_back(options.generators.unit2.name + ": " + id.model);
-    r.instruments.emplace_back(
-        options.generators.unit2.name,
-        id.manufacturer + " " + id.model + " " + id.serial + " " + id.firmware);
-  } catch (const std::exception& e) {
-    r.problems.push_back("generator 2 (" + options.generators.unit2.link.host + ":" +
-                         std::to_string(options.generators.unit2.link.port) + "): " + e.what());
-  }
+  auto open_generator = [&](int unit, const gen::Keysight33500Options& o,
+                            std::unique_ptr<gen::FunctionGenerator>* g) {
+    const std::string name = "unit" + std::to_string(unit);
+    try {
+      *g = gen::OpenKeysight33500(o, transcript ? transcript->Sink(name) : nullptr);
+      const scpi::Identity id = (*g)->Identify();
+      r.found.push_back(o.name + ": " + id.model);
+      r.instruments.emplace_back(
+          o.name, id.manufacturer + " " + id.model + " " + id.serial + " " + id.firmware);
+    } catch (const std::exception& e) {
+      r.problems.push_back("generator " + std::to_string(unit) + " (" + o.link.host + ":" +
+                           std::to_string(o.link.port) + "): " + e.what());
+    }
+  };
+  open_generator(1, options.generators.unit1, &inst->master);
+  open_generator(2, options.generators.unit2, &inst->slave);
   if (inst->master && inst->slave) {
     try {
       inst->master->Reset();
