@@ -71,6 +71,26 @@ bool RunSelf(const std::string& args, std::vector<std::string>* notes, bool echo
   return ok;
 }
 
+namespace {
+
+// What the guided modes show per gate decision: the live quality figures through `print`, and
+// the annotated preview of every accepted frame under out/previews; after `before` (if any).
+orchestrator::FrameObserver GuidedObserver(const fs::path& out, const dataset::BoardSpec& world,
+                                           const dataset::BoardSpec& sliding,
+                                           const orchestrator::ProgressFn& print,
+                                           orchestrator::FrameObserver before) {
+  auto live = orchestrator::MakeLiveFigures(print);
+  auto previews = orchestrator::MakePreviewWriter(
+      out, world, sliding, [print](const std::string& w) { print("warning: " + w); });
+  return [before = std::move(before), live, previews](const orchestrator::FrameReport& r) {
+    if (before) before(r);
+    live(r);
+    previews(r);
+  };
+}
+
+}  // namespace
+
 void MakeGuided(DemoAcquisitionOptions& acq) {
   const sim::Step1Options s1 = acq.sim.step1;
   acq.make_operator = [s1](orchestrator::RigOperator& world, const dataset::Recording& plan) {
@@ -97,14 +117,7 @@ void MakeGuided(DemoAcquisitionOptions& acq) {
       std::printf("%s\n", line.c_str());
       std::fflush(stdout);
     };
-    auto live = orchestrator::MakeLiveFigures(print);
-    auto previews = orchestrator::MakePreviewWriter(
-        o.out_dir, world, sliding, [print](const std::string& w) { print("warning: " + w); });
-    o.on_frame = [before = o.on_frame, live, previews](const orchestrator::FrameReport& r) {
-      if (before) before(r);
-      live(r);
-      previews(r);
-    };
+    o.on_frame = GuidedObserver(o.out_dir, world, sliding, print, o.on_frame);
   };
 }
 
@@ -209,13 +222,8 @@ orchestrator::SessionResult RunLabAcquisition(const fs::path& out,
   co.mcu_device = oo.mcu.device;
   co.host_clock_ns = RealtimeNs;  // Aravis stamps host arrival with CLOCK_REALTIME
   orchestrator::ConsoleOperator console(options.plan, co, nullptr);
-  const orchestrator::FrameObserver live = orchestrator::MakeLiveFigures(options.progress);
-  const orchestrator::FrameObserver previews = orchestrator::MakePreviewWriter(
-      out, options.plan.world_board, options.plan.sliding_board, options.progress);
-  oo.on_frame = [live, previews](const orchestrator::FrameReport& report) {
-    live(report);
-    previews(report);
-  };
+  oo.on_frame = GuidedObserver(out, options.plan.world_board, options.plan.sliding_board,
+                               options.progress, nullptr);
   return orchestrator::RunSession(oo, options.plan, console, options.progress);
 }
 

@@ -479,7 +479,8 @@ SessionResult RunSession(const OrchestratorOptions& options, const dataset::Reco
   const store::Clock& clock = options.clock ? *options.clock : system_clock;
   const std::string plan_yaml = interchange::FormatSessionYaml(plan);
   std::unique_ptr<store::SessionStore> journal;
-  // Frames recorded before a resume, by plan file: true when accepted.
+  // Frames in the journal (recorded before a resume or in this run), by plan file: true when
+  // accepted. Each plan file is looked up once, before it is acquired.
   std::map<std::string, bool> recorded;
   if (options.resume) {
     if (!fs::exists(out / store::kSessionDbName))
@@ -493,6 +494,7 @@ SessionResult RunSession(const OrchestratorOptions& options, const dataset::Reco
                                ": the plan given differs from the plan this session was started "
                                "with (LoadSessionPlan gives the stored one)");
     for (const auto& f : journal->Frames()) {
+      // Rejected frames are kept under rejected/; quality_json names the plan's file.
       const auto q = nlohmann::json::parse(f.quality_json, nullptr, false);
       std::string plan_file = f.file;
       if (q.is_object() && q.contains("plan_file")) plan_file = q["plan_file"].get<std::string>();
@@ -648,6 +650,7 @@ SessionResult RunSession(const OrchestratorOptions& options, const dataset::Reco
         if (g.accepted) {
           record.file = file;
           journal->AddFrame(record, image);
+          recorded[file] = true;
           fo.accepted = true;
           fo.reason.clear();
           return fo;
@@ -657,6 +660,7 @@ SessionResult RunSession(const OrchestratorOptions& options, const dataset::Reco
           // Kept for inspection, outside the interchange layout.
           record.file = RejectedFile(file);
           journal->AddFrame(record, image);
+          recorded[file] = false;
         }
       }
       return fo;
@@ -709,7 +713,10 @@ SessionResult RunSession(const OrchestratorOptions& options, const dataset::Reco
       }
     }
 
-    // A Hall recording into hall/<name>.csv, journalled once complete.
+    // A Hall recording into hall/<name>.csv, journalled once complete. The journal reads the
+    // CSV back rather than keeping its own copy of the batches: one conversion from MCU frames
+    // to readings (the writer's, with its reset handling), and the journal holds exactly what
+    // the interchange folder holds.
     auto hall_done = [&](const std::string& name, const acquisition::HallRecorderResult& r) {
       const fs::path csv = out / "hall" / (name + ".csv");
       const dataset::HallRecording rec =
@@ -798,24 +805,21 @@ SessionResult RunSession(const OrchestratorOptions& options, const dataset::Reco
   safe_state();
   guard.Disarm();
 
-  // session.yaml last: a folder with a session.yaml is complete. The frames kept are those the
-  // journal holds as accepted, in plan order.
-  std::map<std::string, bool> accepted;
-  for (const auto& f : journal->Frames()) {
-    const auto q = nlohmann::json::parse(f.quality_json, nullptr, false);
-    if (f.accepted)
-      accepted[q.is_object() && q.contains("plan_file") ? q["plan_file"].get<std::string>()
-                                                        : f.file] = true;
-  }
+  // session.yaml last: a folder with a session.yaml is complete. The frames kept are those
+  // recorded as accepted (before a resume or now), in plan order.
+  auto accepted = [&](const std::string& file) {
+    const auto it = recorded.find(file);
+    return it != recorded.end() && it->second;
+  };
   dataset::Recording rec = plan;
   rec.hall_actual.reset();
   rec.hall_background.reset();
   rec.step1.clear();
   rec.step2.clear();
   for (const auto& f : plan.step1)
-    if (accepted.count(f.file)) rec.step1.push_back(f);
+    if (accepted(f.file)) rec.step1.push_back(f);
   for (const auto& f : plan.step2)
-    if (accepted.count(f.file)) rec.step2.push_back(f);
+    if (accepted(f.file)) rec.step2.push_back(f);
   if (std::string e = interchange::CheckRecording(rec); !e.empty())
     throw std::runtime_error("session after quality gates: " + e);
   interchange::WriteRecording(out, rec);

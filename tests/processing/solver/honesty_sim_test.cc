@@ -2,8 +2,9 @@
 // the errors of the solved poses (alpha, beta, trans in {0}) against the simulator's truth in
 // the same {0} convention, divided by their predicted sigmas, and the validation dots'
 // normalised errors. Target (issue 6): unit RMS within +-25 %. NOT MET YET: over 8 seeds the
-// RMS is alpha 1.60, beta 1.38, trans 1.38, validation 1.10 (docs/solver.md); the bounds below
-// guard the current state (neither the old 2-4x conservative nor grossly over-confident).
+// RMS is alpha 1.60, beta 1.38, trans 1.38, validation 1.10 (docs/solver.md), with the default 4
+// seeds 1.87 / 1.72 / 1.76 / 1.40; the bounds below are a regression guard on that state
+// (neither the old 2-4x conservative nor grossly over-confident), NOT the acceptance check.
 // MSMCAL_HONESTY_SEEDS=N runs N seeds (default 4).
 #include <gtest/gtest.h>
 
