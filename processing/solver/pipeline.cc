@@ -324,6 +324,87 @@ std::vector<ImageMeasurement> MeasureImages(
   return out;
 }
 
+// Refits every dot over a background measured in the other images of its static group (same
+// camera and board placement: all of step 2; step 1 image by sliding pose), where its pixels
+// are dot-free (vision/dots.h). The images are read a second time, `threads` at a time; the
+// background sums are added in image order, so the result does not depend on the scheduling.
+// Dots without a dot-free view of every window pixel keep their first measurement.
+void RefineDotsOnBackgrounds(const std::vector<std::vector<size_t>>& groups,
+                             const std::vector<std::string>& files, const ImageLoader& load,
+                             const vision::DotOptions& dot_options, int threads,
+                             std::vector<ImageMeasurement>* measured) {
+  struct Window {
+    size_t image, dot;
+  };
+  std::vector<std::vector<Window>> windows(groups.size());
+  std::vector<int> group_of(files.size(), -1);
+  for (size_t g = 0; g < groups.size(); ++g) {
+    if (groups[g].size() < 2) continue;
+    for (size_t i : groups[g]) {
+      group_of[i] = static_cast<int>(g);
+      const auto& m = (*measured)[i];
+      for (size_t k = 0; k < m.dots.size(); ++k)
+        windows[g].push_back({i, k});
+    }
+  }
+  // Per image: its contribution to its group's windows, and its own dots' signal patches.
+  std::vector<std::vector<vision::BackgroundPatch>> contribution(files.size());
+  std::vector<std::vector<vision::DotSignalPatch>> own(files.size());
+  std::vector<std::exception_ptr> errors(files.size());
+  // A dot's window needs its image's size; a group whose images differ in size is skipped.
+  std::vector<cv::Size> sizes(files.size());
+  std::atomic<size_t> next{0};
+  auto work = [&] {
+    for (size_t i = next++; i < files.size(); i = next++) {
+      if (group_of[i] < 0 || (*measured)[i].boards.empty() || !(*measured)[i].boards.back())
+        continue;
+      try {
+        const cv::Mat img = load(files[i]);
+        if (img.empty()) throw SolveError(files[i] + ": cannot read the image");
+        sizes[i] = img.size();
+        std::vector<cv::Rect> rects;
+        for (const Window& w : windows[group_of[i]])
+          rects.push_back(vision::DotFitWindow((*measured)[w.image].dots[w.dot], img.size(),
+                                               dot_options));
+        contribution[i] =
+            vision::BackgroundContribution(img, (*measured)[i].dots, rects, dot_options);
+        for (const auto& d : (*measured)[i].dots)
+          own[i].push_back(vision::ReadDotSignal(img, vision::DotFitWindow(d, img.size(),
+                                                                           dot_options)));
+      } catch (...) {
+        errors[i] = std::current_exception();
+      }
+    }
+  };
+  const size_t n =
+      std::min<size_t>(static_cast<size_t>(threads), std::max<size_t>(1, files.size()));
+  std::vector<std::thread> pool;
+  for (size_t t = 1; t < n; ++t) pool.emplace_back(work);
+  work();
+  for (auto& t : pool) t.join();
+  for (const auto& e : errors)
+    if (e) std::rethrow_exception(e);
+  for (size_t g = 0; g < groups.size(); ++g) {
+    if (windows[g].empty()) continue;
+    bool same_size = true;
+    cv::Size size;
+    for (size_t i : groups[g]) {
+      if (contribution[i].empty()) continue;
+      if (size.empty()) size = sizes[i];
+      same_size = same_size && sizes[i] == size;
+    }
+    if (!same_size) continue;
+    for (size_t w = 0; w < windows[g].size(); ++w) {
+      vision::BackgroundPatch bg;
+      for (size_t i : groups[g])
+        if (!contribution[i].empty()) bg.Add(contribution[i][w]);
+      const Window& win = windows[g][w];
+      vision::RefineDotOnBackground(own[win.image][win.dot], bg, dot_options,
+                                    &(*measured)[win.image].dots[win.dot]);
+    }
+  }
+}
+
 }  // namespace
 
 SolveOutput SolveRecording(const dataset::Recording& rec, const ImageLoader& load,
@@ -380,6 +461,19 @@ SolveOutput SolveRecording(const dataset::Recording& rec, const ImageLoader& loa
     }
     try {
       measured = MeasureImages(files, asks, load, o.dots, o.boards, o.image_threads);
+      if (o.dots.centre == vision::DotCentre::kGaussianFit) {
+        std::vector<std::vector<size_t>> static_groups;
+        std::map<int, size_t> group_of_pose;
+        for (size_t i = 0; i < rec.step1.size(); ++i) {
+          auto [it, added] = group_of_pose.emplace(rec.step1[i].pose, static_groups.size());
+          if (added) static_groups.emplace_back();
+          static_groups[it->second].push_back(i);
+        }
+        static_groups.emplace_back();
+        for (size_t i = 0; i < rec.step2.size(); ++i)
+          static_groups.back().push_back(rec.step1.size() + i);
+        RefineDotsOnBackgrounds(static_groups, files, load, o.dots, o.image_threads, &measured);
+      }
     } catch (const SolveError& e) {
       throw fail(e.what());
     }
@@ -645,7 +739,7 @@ SolveOutput SolveRecording(const dataset::Recording& rec, const ImageLoader& loa
     for (const auto& d : s.dots) {
       const auto p = BackProjectToBoard(rec.camera, *c2_from_world, d.px);
       s.dots_in_world.push_back(p.value_or(Eigen::Vector3d::Zero()));
-      s.near_edge.push_back(p && near_edge(d, *p));
+      s.near_edge.push_back(p && !d.on_background && near_edge(d, *p));
     }
   std::vector<Group> groups;
   for (size_t fi = 0; fi < s2.size(); ++fi) {
@@ -833,6 +927,16 @@ SolveOutput SolveRecording(const dataset::Recording& rec, const ImageLoader& loa
     return HomeFrame(planes[neutral_index], geometry::FastAxisFromPlanes(fast), scan);
   };
   out.world_from_mirror0 = frame_of(est.planes);
+  {
+    std::vector<int> support{neutral_index};
+    std::vector<int> fast_sorted = fast_index;
+    std::sort(fast_sorted.begin(), fast_sorted.end(),
+              [&](int a, int b) { return plane_keys[a].second < plane_keys[b].second; });
+    support.insert(support.end(), fast_sorted.begin(), fast_sorted.end());
+    for (int p : support)
+      out.support_planes.push_back(
+          {plane_keys[p].first, plane_keys[p].second, est.planes[p], out.mle.plane_cov[p]});
+  }
   const Eigen::Vector3d x_o = out.world_from_mirror0.translation;
 
   // Uncertainty of {0} itself: its error phi = [rotation vector (3), dX_O (3)] is a function of

@@ -61,8 +61,17 @@ struct ValidationDetail {
   double normalised_error = 0;      // sqrt(e^T C^-1 e / 2)
 };
 
+// A neutral or fast-only mirror plane (the planes that define {0}; not in mirror_planes.csv).
+struct SupportPlane {
+  dataset::Step2Kind kind = dataset::Step2Kind::kNeutral;
+  int j = -1;  // trigger index; -1 for the neutral plane
+  geometry::Plane plane_in_world;
+  Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();  // as MleResult::plane_cov
+};
+
 struct SolveOutput {
   std::vector<dataset::MirrorPlaneRow> planes;  // scan planes, ascending j
+  std::vector<SupportPlane> support_planes;     // neutral, then fast-only by ascending j
   std::vector<dataset::BeamRow> beams;          // every beam (estimate and validate)
   std::vector<ValidationDetail> validation;
   std::vector<DroppedFrame> dropped;

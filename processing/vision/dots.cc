@@ -36,7 +36,125 @@ struct Accumulator {
   double sw = 0, sw2 = 0, sx = 0, sy = 0, sxx = 0, sxy = 0, syy = 0;
   int n = 0, saturated = 0;
   double peak = 0;
+  int x0 = 0, y0 = 0, x1 = 0, y1 = 0;  // bounding box, inclusive
 };
+
+struct FitPixel {
+  double x, y, s;
+  bool censored;
+};
+
+// Least-squares fit of m(p) = b0 + A exp(-q/2), q = (p - c)^T P (p - c), to the signal of the
+// pixels of a window; saturated pixels only bound the model from below (their true signal is at
+// least what was measured). Levenberg-Marquardt over theta = (cx, cy, A, b0, P00, P01, P11),
+// started from the blob (dot->px, dot->peak, dot->scatter_px2). Returns false if it does not
+// converge to a usable spot; else sets dot->px, dot->cov_px2 and dot->fitted.
+bool FitGaussian(const std::vector<FitPixel>& px, Dot* dot) {
+  using Px = FitPixel;
+  const Eigen::Matrix2d& scatter = dot->scatter_px2;
+  const int n = static_cast<int>(px.size());
+  constexpr int kP = 7;
+  if (n < 2 * kP) return false;
+  using Vec = Eigen::Matrix<double, kP, 1>;
+  using Mat = Eigen::Matrix<double, kP, kP>;
+  // Start from the blob's scatter, widened: the pixels above threshold are only the spot's core.
+  const Eigen::Matrix2d p0 = (1.5 * scatter).inverse();
+  Vec th;
+  th << dot->px.x(), dot->px.y(), dot->peak, 0.0, p0(0, 0), p0(0, 1), p0(1, 1);
+  auto evaluate = [&](const Vec& t, Mat* jtj, Vec* jtr) {
+    double cost = 0;
+    if (jtj) jtj->setZero(), jtr->setZero();
+    for (const Px& q : px) {
+      const double dx = q.x - t(0), dy = q.y - t(1);
+      const double quad = t(4) * dx * dx + 2 * t(5) * dx * dy + t(6) * dy * dy;
+      const double g = std::exp(-0.5 * quad);
+      const double m = t(3) + t(2) * g;
+      double r = m - q.s;
+      if (q.censored && r > 0) r = 0;  // the model may exceed a clipped pixel
+      if (r == 0 && q.censored) continue;
+      cost += r * r;
+      if (!jtj) continue;
+      const double ag = t(2) * g;
+      Vec j;
+      j << ag * (t(4) * dx + t(5) * dy), ag * (t(5) * dx + t(6) * dy), g, 1.0,
+          -0.5 * ag * dx * dx, -ag * dx * dy, -0.5 * ag * dy * dy;
+      jtj->selfadjointView<Eigen::Lower>().rankUpdate(j);
+      *jtr += j * r;
+    }
+    if (jtj) *jtj = jtj->selfadjointView<Eigen::Lower>();
+    return cost;
+  };
+  auto valid = [](const Vec& t) {
+    return t(2) > 0 && t(4) > 0 && t(6) > 0 && t(4) * t(6) - t(5) * t(5) > 0 && t.allFinite();
+  };
+  Mat jtj;
+  Vec jtr;
+  double cost = evaluate(th, &jtj, &jtr);
+  double lambda = 1e-3;
+  bool converged = false;
+  for (int it = 0; it < 50; ++it) {
+    Mat a = jtj;
+    a.diagonal() += lambda * jtj.diagonal().cwiseMax(1e-12);
+    const Vec step = a.ldlt().solve(-jtr);
+    const Vec cand = th + step;
+    if (!valid(cand)) {
+      lambda *= 10;
+      if (lambda > 1e8) break;
+      continue;
+    }
+    const double c2 = evaluate(cand, nullptr, nullptr);
+    if (c2 <= cost) {
+      const double rel = (cost - c2) / std::max(cost, 1e-300);
+      th = cand;
+      cost = evaluate(th, &jtj, &jtr);
+      lambda = std::max(lambda * 0.3, 1e-9);
+      if (rel < 1e-10 || step.head<2>().norm() < 1e-6) {
+        converged = true;
+        break;
+      }
+    } else {
+      lambda *= 10;
+      if (lambda > 1e8) break;
+    }
+  }
+  if (!converged || !valid(th)) return false;
+  // Covariance of the centre: residual variance x (J^T J)^-1 over the pixels that constrain it.
+  int used = 0;
+  for (const Px& q : px) {
+    const double dx = q.x - th(0), dy = q.y - th(1);
+    const double m = th(3) + th(2) * std::exp(-0.5 * (th(4) * dx * dx + 2 * th(5) * dx * dy +
+                                                       th(6) * dy * dy));
+    if (!(q.censored && m >= q.s)) ++used;
+  }
+  if (used <= kP) return false;
+  const double s2 = cost / (used - kP);
+  const Eigen::LDLT<Mat> ldlt(jtj);
+  if (ldlt.info() != Eigen::Success || !ldlt.isPositive()) return false;
+  const Mat inv = ldlt.solve(Mat::Identity());
+  const Eigen::Matrix2d c = s2 * inv.topLeftCorner<2, 2>();
+  if (!c.allFinite() || !(c(0, 0) > 0) || !(c.determinant() > 0)) return false;
+  dot->px = th.head<2>();
+  dot->cov_px2 = 0.5 * (c + c.transpose());
+  dot->fitted = true;
+  return true;
+}
+
+// The pixels of window [x0, x1] x [y0, y1] for FitGaussian.
+template <typename T, int kChannels>
+std::vector<FitPixel> WindowPixels(const cv::Mat& signal_image, const cv::Mat& original, int full,
+                                   int x0, int y0, int x1, int y1) {
+  std::vector<FitPixel> px;
+  px.reserve(static_cast<size_t>((x1 - x0 + 1) * (y1 - y0 + 1)));
+  for (int y = y0; y <= y1; ++y) {
+    const T* r = signal_image.ptr<T>(y);
+    const T* o = original.ptr<T>(y);
+    for (int x = x0; x <= x1; ++x)
+      px.push_back({static_cast<double>(x), static_cast<double>(y),
+                    static_cast<double>(Signal<T, kChannels>(r, x)),
+                    Saturated<T, kChannels>(o, x, full)});
+  }
+  return px;
+}
 
 template <typename T, int kChannels>
 std::vector<Dot> Detect(const cv::Mat& image, const cv::Mat& original, const DotOptions& o,
@@ -74,6 +192,9 @@ std::vector<Dot> Detect(const cv::Mat& image, const cv::Mat& original, const Dot
         acc.sxx += s * cx * cx;
         acc.sxy += s * cx * cy;
         acc.syy += s * cy * cy;
+        if (acc.n == 1) acc.x0 = acc.x1 = cx, acc.y0 = acc.y1 = cy;
+        acc.x0 = std::min(acc.x0, cx), acc.x1 = std::max(acc.x1, cx);
+        acc.y0 = std::min(acc.y0, cy), acc.y1 = std::max(acc.y1, cy);
         if (acc.n > o.max_pixels + 1) continue;  // stop growing; rejected below anyway
         for (int dy = -1; dy <= 1; ++dy) {
           const int ny = cy + dy;
@@ -121,6 +242,23 @@ std::vector<Dot> Detect(const cv::Mat& image, const cv::Mat& original, const Dot
       dot.cov_px2 = scatter / n_eff;
       dot.num_pixels = acc.n;
       dot.peak = acc.peak;
+      dot.saturated_pixels = acc.saturated;
+      dot.scatter_px2 = scatter;
+      dot.centroid_px = dot.px;
+      dot.blob_box = cv::Rect(acc.x0, acc.y0, acc.x1 - acc.x0 + 1, acc.y1 - acc.y0 + 1);
+      if (o.centre == DotCentre::kGaussianFit) {
+        const int m = o.fit_margin_px;
+        Dot fit = dot;
+        if (FitGaussian(WindowPixels<T, kChannels>(image, original, full, std::max(0, acc.x0 - m),
+                                                   std::max(0, acc.y0 - m),
+                                                   std::min(w - 1, acc.x1 + m),
+                                                   std::min(h - 1, acc.y1 + m)),
+                        &fit) &&
+            (fit.px - dot.px).norm() <= o.max_fit_shift_px)
+          dot = fit;
+        else
+          ++local.fit_fallbacks;
+      }
       dots.push_back(dot);
     }
   }
@@ -144,6 +282,12 @@ std::string DotOptions::Validate() const {
     s << "background_kernel_px = " << background_kernel_px << " must be 0 or odd and positive";
   else if (!(max_saturated_fraction >= 0 && max_saturated_fraction <= 1))
     s << "max_saturated_fraction = " << max_saturated_fraction << " must be in [0, 1]";
+  else if (fit_margin_px < 0 || fit_margin_px > 50)
+    s << "fit_margin_px = " << fit_margin_px << " must be in [0, 50]";
+  else if (!(max_fit_shift_px > 0))
+    s << "max_fit_shift_px = " << max_fit_shift_px << " must be > 0";
+  else if (background_mask_margin_px < 0 || background_mask_margin_px > 50)
+    s << "background_mask_margin_px = " << background_mask_margin_px << " must be in [0, 50]";
   return s.str();
 }
 
@@ -176,6 +320,125 @@ std::vector<Dot> DetectDots(const cv::Mat& image, const DotOptions& options,
                                   std::to_string(image.type()) +
                                   " (expected 8/16-bit, 1 or 3 channels)");
   }
+}
+
+cv::Rect DotFitWindow(const Dot& dot, const cv::Size& image_size, const DotOptions& options) {
+  const int m = options.fit_margin_px;
+  const cv::Rect grown(dot.blob_box.x - m, dot.blob_box.y - m, dot.blob_box.width + 2 * m,
+                       dot.blob_box.height + 2 * m);
+  return grown & cv::Rect(0, 0, image_size.width, image_size.height);
+}
+
+namespace {
+
+template <typename T, int kChannels>
+void ReadSignalT(const cv::Mat& image, const cv::Rect& window, cv::Mat1f* signal,
+                 cv::Mat1b* saturated, const cv::Mat1b* mask_out) {
+  const int full = sizeof(T) == 1 ? 255 : 65535;
+  for (int y = 0; y < window.height; ++y) {
+    const T* r = image.ptr<T>(window.y + y);
+    float* s = signal->ptr<float>(y);
+    uchar* sat = saturated ? saturated->ptr<uchar>(y) : nullptr;
+    const uchar* m = mask_out ? mask_out->ptr<uchar>(y) : nullptr;
+    for (int x = 0; x < window.width; ++x) {
+      if (m && m[x]) continue;
+      s[x] = static_cast<float>(Signal<T, kChannels>(r, window.x + x));
+      if (sat) sat[x] = Saturated<T, kChannels>(r, window.x + x, full) ? 1 : 0;
+    }
+  }
+}
+
+void ReadSignal(const cv::Mat& image, const cv::Rect& window, cv::Mat1f* signal,
+                cv::Mat1b* saturated, const cv::Mat1b* mask_out) {
+  switch (image.type()) {
+    case CV_8UC1:
+      return ReadSignalT<uint8_t, 1>(image, window, signal, saturated, mask_out);
+    case CV_8UC3:
+      return ReadSignalT<uint8_t, 3>(image, window, signal, saturated, mask_out);
+    case CV_16UC1:
+      return ReadSignalT<uint16_t, 1>(image, window, signal, saturated, mask_out);
+    case CV_16UC3:
+      return ReadSignalT<uint16_t, 3>(image, window, signal, saturated, mask_out);
+    default:
+      throw std::invalid_argument("ReadDotSignal: unsupported image type " +
+                                  std::to_string(image.type()));
+  }
+}
+
+}  // namespace
+
+DotSignalPatch ReadDotSignal(const cv::Mat& image, const cv::Rect& window) {
+  if ((window & cv::Rect(0, 0, image.cols, image.rows)) != window || window.empty())
+    throw std::invalid_argument("ReadDotSignal: window outside the image");
+  DotSignalPatch p;
+  p.window = window;
+  p.signal = cv::Mat1f(window.size(), 0.0f);
+  p.saturated = cv::Mat1b(window.size(), uchar{0});
+  ReadSignal(image, window, &p.signal, &p.saturated, nullptr);
+  return p;
+}
+
+void BackgroundPatch::Add(const BackgroundPatch& other) {
+  if (sum.empty()) {
+    sum = other.sum.clone();
+    count = other.count.clone();
+    return;
+  }
+  if (other.sum.size() != sum.size())
+    throw std::invalid_argument("BackgroundPatch::Add: window sizes differ");
+  sum += other.sum;
+  count += other.count;
+}
+
+std::vector<BackgroundPatch> BackgroundContribution(const cv::Mat& image,
+                                                    const std::vector<Dot>& dots,
+                                                    const std::vector<cv::Rect>& windows,
+                                                    const DotOptions& options) {
+  const cv::Rect whole(0, 0, image.cols, image.rows);
+  const int m = options.background_mask_margin_px;
+  std::vector<cv::Rect> masks;
+  for (const Dot& d : dots)
+    masks.emplace_back(d.blob_box.x - m, d.blob_box.y - m, d.blob_box.width + 2 * m,
+                       d.blob_box.height + 2 * m);
+  std::vector<BackgroundPatch> out(windows.size());
+  for (size_t w = 0; w < windows.size(); ++w) {
+    const cv::Rect win = windows[w];
+    if ((win & whole) != win || win.empty())
+      throw std::invalid_argument("BackgroundContribution: window outside the image");
+    cv::Mat1b masked(win.size(), uchar{0});
+    for (const cv::Rect& r : masks) {
+      const cv::Rect o = r & win;
+      if (!o.empty()) masked(o - win.tl()).setTo(1);
+    }
+    BackgroundPatch& p = out[w];
+    p.sum = cv::Mat1f(win.size(), 0.0f);
+    ReadSignal(image, win, &p.sum, nullptr, &masked);
+    p.count = cv::Mat1f(win.size(), 1.0f);
+    p.count.setTo(0.0f, masked);
+  }
+  return out;
+}
+
+bool RefineDotOnBackground(const DotSignalPatch& own, const BackgroundPatch& background,
+                           const DotOptions& options, Dot* dot) {
+  if (background.sum.size() != own.signal.size() || background.count.size() != own.signal.size())
+    return false;
+  std::vector<FitPixel> px;
+  px.reserve(own.signal.total());
+  for (int y = 0; y < own.signal.rows; ++y)
+    for (int x = 0; x < own.signal.cols; ++x) {
+      const float c = background.count(y, x);
+      if (!(c > 0)) return false;
+      px.push_back({static_cast<double>(own.window.x + x), static_cast<double>(own.window.y + y),
+                    own.signal(y, x) - background.sum(y, x) / c, own.saturated(y, x) != 0});
+    }
+  Dot fit = *dot;
+  fit.px = dot->centroid_px;
+  if (!FitGaussian(px, &fit) || (fit.px - dot->centroid_px).norm() > options.max_fit_shift_px)
+    return false;
+  fit.on_background = true;
+  *dot = fit;
+  return true;
 }
 
 std::vector<Dot> DetectDotsOpenCvReference(const cv::Mat& image, const DotOptions& options) {

@@ -1,11 +1,13 @@
 // Honest sigmas on rendered images: over several simulated sessions (scene jittered per seed),
 // the errors of the solved poses (alpha, beta, trans in {0}) against the simulator's truth in
 // the same {0} convention, divided by their predicted sigmas, and the validation dots'
-// normalised errors. Target (issue 6): unit RMS within +-25 %. NOT MET YET: over 8 seeds the
-// RMS is alpha 1.60, beta 1.38, trans 1.38, validation 1.10 (docs/solver.md), with the default 4
-// seeds 1.87 / 1.72 / 1.76 / 1.40; the bounds below are a regression guard on that state
-// (neither the old 2-4x conservative nor grossly over-confident), NOT the acceptance check.
-// MSMCAL_HONESTY_SEEDS=N runs N seeds (default 4).
+// normalised errors. Target (issue 6): unit RMS within +-25 %. With dots fitted over a
+// background measured in the other images (docs/solver.md, "Dots"), 8 seeds (7 solved) give
+// alpha 0.79, beta 1.15, trans 1.25, validation 1.16 on the 2-core container; the bounds below
+// are that state with a margin, not yet the +-25 % acceptance check (step-1 dots, with no other
+// image of their sliding pose, still fall back to the top-hat fit). Also prints the errors of
+// the shared parameters (camera poses, beams) and of the planes that define {0}.
+// MSMCAL_HONESTY_SEEDS=N runs N seeds (default 8).
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -17,6 +19,7 @@
 #include "mocks/rig/rig_simulator.h"
 #include "processing/geometry/mirror_frame.h"
 #include "processing/solver/home_frame.h"
+#include "processing/solver/mle.h"
 #include "processing/solver/pipeline.h"
 
 namespace msmcal::solver {
@@ -32,7 +35,7 @@ struct Acc {
 };
 
 TEST(HonestySimTest, NormalisedErrorsHaveUnitRms) {
-  int num_seeds = 4;
+  int num_seeds = 8;
   if (const char* e = std::getenv("MSMCAL_HONESTY_SEEDS")) num_seeds = std::atoi(e);
   Acc za, zb, zt, zv, trans_err;
   int skipped = 0;
@@ -78,11 +81,71 @@ TEST(HonestySimTest, NormalisedErrorsHaveUnitRms) {
       const Eigen::Vector3d er = geometry::So3Log(out.world_from_mirror0.RotationMatrix() *
                                                   truth_frame.RotationMatrix().transpose());
       const Eigen::Vector3d et3 = out.world_from_mirror0.translation - truth_frame.translation;
+      {
+        const Eigen::Matrix3d r0 = truth_frame.RotationMatrix();
+        const Eigen::Vector3d el = r0.transpose() * er;
+        const Eigen::Matrix3d cl = r0.transpose() * out.mirror0_cov.topLeftCorner<3, 3>() * r0;
+        std::printf("  frame rot err in {0} (%.4f %.4f %.4f) deg sigma (%.4f %.4f %.4f)\n",
+                    el.x() * kRadToDeg, el.y() * kRadToDeg, el.z() * kRadToDeg,
+                    std::sqrt(cl(0, 0)) * kRadToDeg, std::sqrt(cl(1, 1)) * kRadToDeg,
+                    std::sqrt(cl(2, 2)) * kRadToDeg);
+      }
       std::printf(
           "  frame err rot (%.4f %.4f %.4f) deg sigma (%.4f %.4f %.4f); origin (%.3f %.3f "
           "%.3f) sigma (%.3f %.3f %.3f)\n",
           er.x() * kRadToDeg, er.y() * kRadToDeg, er.z() * kRadToDeg, sd(0) * kRadToDeg,
           sd(1) * kRadToDeg, sd(2) * kRadToDeg, et3.x(), et3.y(), et3.z(), sd(3), sd(4), sd(5));
+    }
+    {
+      // Mahalanobis errors of the shared parameters (c1/c2 from world, beams) against truth.
+      const MleResult& m = out.mle;
+      auto transform_err = [](const geometry::Rigid3d& est, const geometry::Rigid3d& truth) {
+        Eigen::Matrix<double, 6, 1> e;
+        e.head<3>() = geometry::So3Log(truth.RotationMatrix() * est.RotationMatrix().transpose());
+        e.tail<3>() = truth.translation - est.translation;
+        return e;
+      };
+      auto maha = [&](const Eigen::VectorXd& e, int off) {
+        const Eigen::MatrixXd c = m.other_cov.block(off, off, e.size(), e.size());
+        return e.dot(c.ldlt().solve(e));
+      };
+      const auto e1 = transform_err(m.estimate.c1_from_world, simulator.c1_from_world());
+      const auto e2 = transform_err(m.estimate.c2_from_world, simulator.c2_from_world());
+      std::printf("  chi2/6: c1_from_world %.2f  c2_from_world %.2f\n", maha(e1, 0) / 6,
+                  maha(e2, m.OffsetC2()) / 6);
+      for (size_t b = 0; b < m.estimate.beams.size(); ++b) {
+        const geometry::Line& l = m.estimate.beams[b];
+        geometry::Line t = simulator.beams_in_world()[out.beams[b].beam - 1];
+        if (t.v.dot(l.v) < 0) t = geometry::Line{-t.v, -t.m};
+        const Eigen::Matrix<double, 3, 2> u = TangentBasis(l.v);
+        const Eigen::Vector3d p0 = l.ClosestPointToOrigin();
+        // Truth line meets the plane through p0 normal to v0.
+        const Eigen::Vector3d pt = t.PointAt(t.Parameter(p0) + 0.0);
+        const double s = (p0 - t.ClosestPointToOrigin()).dot(l.v) / t.v.dot(l.v);
+        const Eigen::Vector3d q = t.ClosestPointToOrigin() + s * t.v;
+        (void)pt;
+        Eigen::Vector4d e;
+        e.head<2>() = u.transpose() * (t.v / t.v.dot(l.v));
+        e.tail<2>() = u.transpose() * (q - p0);
+        std::printf("  beam %d: angle err %.4f deg, chi2/4 %.2f\n", out.beams[b].beam,
+                    geometry::AngleBetween(l.v, t.v) * kRadToDeg, maha(e, m.OffsetBeam(b)) / 4);
+      }
+    }
+    for (const auto& sp : out.support_planes) {
+      double t = 0;
+      for (const auto& tr : simulator.triggers())
+        if (tr.j == sp.j) t = tr.t_s;
+      const auto mode = sp.kind == dataset::Step2Kind::kNeutral ? sim::DriveMode::kOff
+                                                                 : sim::DriveMode::kFastOnly;
+      geometry::Plane tp = simulator.MirrorPlaneInWorld(t, mode);
+      if (tp.n.dot(sp.plane_in_world.n) < 0) tp = geometry::Plane{-tp.n, -tp.d};
+      const Eigen::Vector3d e = PlaneToChart(sp.plane_in_world, tp);
+      const auto pose = geometry::PoseFromWorldPlane(truth_frame, tp);
+      std::printf("  %s j=%d alpha %.2f: err (%.4f %.4f deg, %.4f mm) sd (%.4f %.4f, %.4f) chi2/3 %.2f\n",
+                  dataset::ToString(sp.kind), sp.j, pose.alpha_rad * kRadToDeg,
+                  e(0) * kRadToDeg, e(1) * kRadToDeg, e(2),
+                  std::sqrt(sp.cov(0, 0)) * kRadToDeg, std::sqrt(sp.cov(1, 1)) * kRadToDeg,
+                  std::sqrt(sp.cov(2, 2)), e.dot(sp.cov.ldlt().solve(e)) / 3);
     }
     Acc sa, sb, st, et;
     for (size_t k = 0; k < out.planes.size(); ++k) {
@@ -112,10 +175,10 @@ TEST(HonestySimTest, NormalisedErrorsHaveUnitRms) {
               za.Rms(), zb.Rms(), zt.Rms(), zv.Rms());
   std::printf("trans error vs truth RMS %.4f mm\n", trans_err.Rms());
   EXPECT_LE(skipped, num_seeds / 4);
-  EXPECT_LT(trans_err.Rms(), 0.08);
+  EXPECT_LT(trans_err.Rms(), 0.02);  // measured 0.009 mm
   for (double z : {za.Rms(), zb.Rms(), zt.Rms(), zv.Rms()}) {
-    EXPECT_GT(z, 0.6);
-    EXPECT_LT(z, 2.2);
+    EXPECT_GT(z, 0.7);
+    EXPECT_LT(z, 1.5);
   }
 }
 
