@@ -338,7 +338,8 @@ void RigSimulator::BuildFrames() {
   check_board("world board in C1", options_.world_board, c1_from_world_);
   check_board("world board in C2", options_.world_board, c2_from_world_);
 
-  // Step 1: one frame per pose with all beams, then identification frames at the last pose.
+  // Step 1: per pose a frame with all beams (and a background frame with none), then
+  // identification frames at the last pose.
   auto file = [](const char* step, size_t i) {
     char buf[64];
     std::snprintf(buf, sizeof(buf), "%s/%04zu.png", step, i);
@@ -348,6 +349,8 @@ void RigSimulator::BuildFrames() {
     check_board("sliding board pose " + std::to_string(l) + " in C1", options_.sliding_board,
                 c1_from_sliding(l));
     step1_.push_back({file("step1", step1_.size()), l, all_beams});
+    if (s1.background_frames && !(s1.identification_frames && l == s1.poses - 1))
+      step1_.push_back({file("step1", step1_.size()), l, {}});
     for (int id : all_beams) {
       const auto p = SlidingDotInWorld(id, l);
       const Eigen::Vector3d p_board =

@@ -86,6 +86,7 @@ void VisitAll(V& v, SimOptions& o) {
     v.Field("farthest_mm", s.farthest_mm);
     v.Field("tilt_deg", s.tilt_deg);
     v.Field("identification_frames", s.identification_frames);
+    v.Field("background_frames", s.background_frames);
   });
   v.Group("step2", [&] {
     auto& s = o.step2;

@@ -90,6 +90,10 @@ struct Step1Options {
   double farthest_mm = 100.0;  // last pose
   double tilt_deg = 12.0;      // plate tilt about its rows axis, alternating sign per pose
   bool identification_frames = true;  // one frame per beam alone at the first pose
+  // After each pose's frame, one with every beam blocked (beams: []): the background under the
+  // dots for their fit (docs/solver.md, "Dots"). Not at a pose that has identification frames,
+  // whose single-beam frames already show each dot's pixels dot-free.
+  bool background_frames = true;
 };
 
 struct Step2Options {

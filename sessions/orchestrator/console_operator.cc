@@ -31,6 +31,8 @@ std::string BeamsLine(const dataset::Recording& plan, const std::vector<int>& be
   std::vector<int> blocked;
   for (const auto& b : plan.beams)
     if (std::find(beams.begin(), beams.end(), b.id) == beams.end()) blocked.push_back(b.id);
+  if (beams.empty())
+    return "Block every beam (background frame: the board without laser dots, for the dot fit).";
   if (blocked.empty())
     return std::string("Unblock ") + (beams.size() == 1 ? "beam " : "beams ") + JoinInts(beams) +
            " (all beams).";

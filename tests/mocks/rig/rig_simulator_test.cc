@@ -159,7 +159,15 @@ RigSimulator* RigTest::sim_ = nullptr;
 TEST_F(RigTest, DefaultConfigIsSound) {
   for (const auto& w : sim_->warnings()) ADD_FAILURE() << w;
   EXPECT_GE(sim_->triggers().size(), 40u);
-  EXPECT_EQ(sim_->step1_frames().size(), 7u + 3u);
+  // 7 poses, a background frame (no beam) at the 6 without identification frames, 3 of those.
+  EXPECT_EQ(sim_->step1_frames().size(), 7u + 6u + 3u);
+  int background = 0;
+  for (const auto& f : sim_->step1_frames()) {
+    if (!f.beams.empty()) continue;
+    ++background;
+    EXPECT_LT(f.pose, 6) << f.file;
+  }
+  EXPECT_EQ(background, 6);
   EXPECT_NEAR(sim_->SpanningAngleDeg(sim_->MirrorPlaneInWorld(0, DriveMode::kOff)), 46.0, 1e-6);
   // Every trigger appears in at least one scan frame; kinds present.
   std::map<int, int> seen;

@@ -122,6 +122,7 @@ TEST(PipelineSimTest, DropsStep1FrameWithInconsistentBeamLabels) {
   o.mirror.fast.amplitude_vpp = 2.5;
   o.mirror.slow.frequency_hz = 4.0;
   o.mirror.slow.amplitude_vpp = 3.5;
+  o.step1.background_frames = false;  // the frames (and their noise) of the original failure
   const SimRun r = RunSimulation(o);
   int label_drops = 0;
   for (const auto& d : r.out.dropped) {
