@@ -40,13 +40,45 @@ cv::Mat MakeFrame(bool with_board) {
   return img;
 }
 
+// Args: (board pattern + top-hat, Gaussian fit of every dot).
 void BM_DetectDots(benchmark::State& state) {
   const cv::Mat img = MakeFrame(state.range(0) != 0);
   msmcal::vision::DotOptions o;
   o.background_kernel_px = state.range(0) != 0 ? 11 : 0;
+  o.centre = state.range(1) != 0 ? msmcal::vision::DotCentre::kGaussianFit
+                                 : msmcal::vision::DotCentre::kWeightedCentroid;
   for (auto _ : state) benchmark::DoNotOptimize(msmcal::vision::DetectDots(img, o));
 }
-BENCHMARK(BM_DetectDots)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_DetectDots)
+    ->Args({0, 0})
+    ->Args({0, 1})
+    ->Args({1, 0})
+    ->Args({1, 1})
+    ->Unit(benchmark::kMillisecond);
+
+// The second pass of one frame's 60 dots: their windows' background from 3 other frames (the
+// same frame here, its own dots masked, which the benchmark does not mind) and the refit.
+void BM_RefineDotsOnBackground(benchmark::State& state) {
+  namespace v = msmcal::vision;
+  const cv::Mat img = MakeFrame(true);
+  const auto dots = v::DetectDots(img);
+  std::vector<cv::Rect> windows;
+  for (const auto& d : dots) windows.push_back(v::DotFitWindow(d, img.size(), v::DotOptions{}));
+  for (auto _ : state) {
+    std::vector<v::BackgroundPatch> bg(windows.size());
+    for (int k = 0; k < 3; ++k) {
+      const auto c = v::BackgroundContribution(img, {}, windows);
+      for (size_t w = 0; w < windows.size(); ++w) bg[w].Add(c[w]);
+    }
+    for (size_t w = 0; w < windows.size(); ++w) {
+      v::Dot d = dots[w];
+      benchmark::DoNotOptimize(
+          v::RefineDotOnBackground(v::ReadDotSignal(img, windows[w]), bg[w], {}, &d));
+    }
+  }
+  state.counters["dots"] = static_cast<double>(dots.size());
+}
+BENCHMARK(BM_RefineDotsOnBackground)->Unit(benchmark::kMillisecond);
 
 void BM_DetectDotsOpenCvReference(benchmark::State& state) {
   const cv::Mat img = MakeFrame(false);

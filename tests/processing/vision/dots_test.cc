@@ -125,5 +125,120 @@ TEST(DotOptionsTest, ValidateNamesTheField) {
   EXPECT_THROW(DetectDots(cv::Mat1b(10, 10), o), std::invalid_argument);
 }
 
+// ---- The Gaussian fit (DotCentre::kGaussianFit) ----
+
+double NearestError(const std::vector<Dot>& dots, double u, double v, const Dot** which = nullptr) {
+  double best = 1e9;
+  for (const auto& d : dots) {
+    const double e = std::hypot(d.px.x() - u, d.px.y() - v);
+    if (e < best) {
+      best = e;
+      if (which) *which = &d;
+    }
+  }
+  return best;
+}
+
+// Noiseless spots: the centroid is biased by the threshold cut at pixel boundaries, the fit is
+// not (Mono16: no quantisation to speak of).
+TEST(DotFitTest, UnbiasedWhereTheCentroidIsNot) {
+  cv::Mat1f f(240, 360, 0.05f);
+  for (const auto& s : Spots()) AddSpot(f, s.u, s.v, 1.6, 0.7);
+  DotOptions centroid;
+  centroid.centre = DotCentre::kWeightedCentroid;
+  const cv::Mat img = ToType(f, CV_16U);
+  const auto fitted = DetectDots(img);
+  const auto plain = DetectDots(img, centroid);
+  double worst_fit = 0, worst_centroid = 0;
+  for (const auto& s : Spots()) {
+    worst_fit = std::max(worst_fit, NearestError(fitted, s.u, s.v));
+    worst_centroid = std::max(worst_centroid, NearestError(plain, s.u, s.v));
+  }
+  EXPECT_LT(worst_fit, 0.002);
+  EXPECT_GT(worst_centroid, 0.01);
+  for (const auto& d : fitted) EXPECT_TRUE(d.fitted);
+}
+
+// A spot clipped at full scale (peak 2x full scale) on a dark background: its saturated core
+// only bounds the model, the flanks place it.
+TEST(DotFitTest, SaturatedSpotIsPlacedByItsFlanks) {
+  cv::Mat1f f(120, 120, 0.05f);
+  AddSpot(f, 60.37, 58.81, 1.8, 2.0);
+  cv::min(f, 1.0f, f);
+  DotOptions o;
+  o.max_saturated_fraction = 1.0;
+  const auto dots = DetectDots(ToType(f, CV_16U), o);
+  ASSERT_EQ(dots.size(), 1u);
+  EXPECT_GT(dots[0].saturated_pixels, 5);
+  EXPECT_TRUE(dots[0].fitted);
+  EXPECT_LT(NearestError(dots, 60.37, 58.81), 0.005);
+}
+
+// On repeated noisy renderings of one spot the fit's predicted sigma matches its scatter.
+TEST(DotFitTest, CovarianceMatchesTheScatterOverNoise) {
+  std::mt19937 rng(7);
+  std::normal_distribution<float> noise(0.0f, 0.01f);
+  double e2 = 0, v2 = 0;
+  int n = 0;
+  for (int k = 0; k < 200; ++k) {
+    cv::Mat1f f(64, 64, 0.05f);
+    AddSpot(f, 31.3, 32.6, 1.7, 0.6);
+    for (auto& p : f) p += noise(rng);
+    const auto dots = DetectDots(ToType(f, CV_16U));
+    ASSERT_EQ(dots.size(), 1u);
+    e2 += (dots[0].px - Eigen::Vector2d(31.3, 32.6)).squaredNorm();
+    v2 += dots[0].cov_px2.trace();
+    ++n;
+  }
+  const double ratio = std::sqrt(e2 / v2);
+  std::printf("RMS error / RMS predicted sigma: %.3f\n", ratio);
+  EXPECT_GT(ratio, 0.8);
+  EXPECT_LT(ratio, 1.25);
+}
+
+// A spot at a square corner (X-junction), clipped on the light squares: over the top-hat
+// background the fit is off (the opening does not reproduce the junction); over the background
+// measured in two other images (the same squares, spots elsewhere) it is right. Where no other
+// image sees the window dot-free, the dot is left alone.
+TEST(DotFitTest, BackgroundFromOtherImagesRemovesASquareCorner) {
+  auto scene = [](double u, double v) {
+    cv::Mat1f f(120, 160, 0.06f);
+    f(cv::Rect(80, 0, 80, 60)) = 0.8f;  // light squares: top right, bottom left
+    f(cv::Rect(0, 60, 80, 60)) = 0.8f;
+    cv::GaussianBlur(f, f, cv::Size(0, 0), 0.8);
+    if (u > 0) AddSpot(f, u, v, 1.7, 0.7);
+    cv::min(f, 1.0f, f);
+    return ToType(f, CV_8U);
+  };
+  const double u = 78.6, v = 61.2;  // at the corner
+  const cv::Mat own = scene(u, v);
+  const std::vector<cv::Mat> others = {scene(30.2, 30.7), scene(120.4, 90.1)};
+  auto dots = DetectDots(own);
+  ASSERT_EQ(dots.size(), 1u);
+  const double tophat_error = NearestError(dots, u, v);
+  const cv::Rect window = DotFitWindow(dots[0], own.size(), DotOptions{});
+  BackgroundPatch bg;
+  for (const auto& img : others) {
+    const auto img_dots = DetectDots(img);
+    ASSERT_EQ(img_dots.size(), 1u);
+    bg.Add(BackgroundContribution(img, img_dots, {window})[0]);
+  }
+  Dot refined = dots[0];
+  ASSERT_TRUE(RefineDotOnBackground(ReadDotSignal(own, window), bg, DotOptions{}, &refined));
+  EXPECT_TRUE(refined.on_background);
+  const double refined_error = std::hypot(refined.px.x() - u, refined.px.y() - v);
+  std::printf("corner spot: top-hat fit error %.4f px, fit over measured background %.4f px\n",
+              tophat_error, refined_error);
+  EXPECT_LT(refined_error, 0.02);
+  EXPECT_GT(tophat_error, 0.025);  // measured 0.033
+  EXPECT_GT(tophat_error, 5 * refined_error);
+  // The only other image has its own spot at the same place: no dot-free view.
+  BackgroundPatch blind = BackgroundContribution(own, dots, {window})[0];
+  Dot untouched = dots[0];
+  EXPECT_FALSE(RefineDotOnBackground(ReadDotSignal(own, window), blind, DotOptions{}, &untouched));
+  EXPECT_EQ(untouched.px, dots[0].px);
+  EXPECT_FALSE(untouched.on_background);
+}
+
 }  // namespace
 }  // namespace msmcal::vision
