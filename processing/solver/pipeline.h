@@ -38,6 +38,11 @@ struct PipelineOptions {
   MleOptions mle;
   // Grouping of reflected dots into one mirror plane: worst accepted mean pixel inconsistency.
   double max_group_residual_px = 15.0;
+  // The same for a frame with fewer dots than triggers x beams: the triggers whose dots (every
+  // listed beam's) are all there are kept, each within this tighter tolerance (correct groups
+  // score ~0.2 px on the simulator; with two estimate beams a wrong pairing can still fit a
+  // plane, the held-out beams' dots are the check).
+  double partial_frame_group_residual_px = 2.0;
   // Trigger-index assignment inside multi-trigger frames (RANSAC over a drive-phase model).
   int ransac_iterations = 3000;
   double ransac_inlier_deg = 0.4;

@@ -77,8 +77,8 @@ bool FitGaussian(const std::vector<FitPixel>& px, Dot* dot) {
       if (!jtj) continue;
       const double ag = t(2) * g;
       Vec j;
-      j << ag * (t(4) * dx + t(5) * dy), ag * (t(5) * dx + t(6) * dy), g, 1.0,
-          -0.5 * ag * dx * dx, -ag * dx * dy, -0.5 * ag * dy * dy;
+      j << ag * (t(4) * dx + t(5) * dy), ag * (t(5) * dx + t(6) * dy), g, 1.0, -0.5 * ag * dx * dx,
+          -ag * dx * dy, -0.5 * ag * dy * dy;
       jtj->selfadjointView<Eigen::Lower>().rankUpdate(j);
       *jtr += j * r;
     }
@@ -123,8 +123,8 @@ bool FitGaussian(const std::vector<FitPixel>& px, Dot* dot) {
   int used = 0;
   for (const Px& q : px) {
     const double dx = q.x - th(0), dy = q.y - th(1);
-    const double m = th(3) + th(2) * std::exp(-0.5 * (th(4) * dx * dx + 2 * th(5) * dx * dy +
-                                                       th(6) * dy * dy));
+    const double m =
+        th(3) + th(2) * std::exp(-0.5 * (th(4) * dx * dx + 2 * th(5) * dx * dy + th(6) * dy * dy));
     if (!(q.censored && m >= q.s)) ++used;
   }
   if (used <= kP) return false;
@@ -253,10 +253,9 @@ std::vector<Dot> Detect(const cv::Mat& image, const cv::Mat& original, cv::Mat1b
       if (o.centre == DotCentre::kGaussianFit) {
         const int m = o.fit_margin_px;
         Dot fit = dot;
-        if (FitGaussian(WindowPixels<T, kChannels>(image, original, full, std::max(0, acc.x0 - m),
-                                                   std::max(0, acc.y0 - m),
-                                                   std::min(w - 1, acc.x1 + m),
-                                                   std::min(h - 1, acc.y1 + m)),
+        if (FitGaussian(WindowPixels<T, kChannels>(
+                            image, original, full, std::max(0, acc.x0 - m), std::max(0, acc.y0 - m),
+                            std::min(w - 1, acc.x1 + m), std::min(h - 1, acc.y1 + m)),
                         &fit) &&
             (fit.px - dot.px).norm() <= o.max_fit_shift_px)
           dot = fit;

@@ -19,7 +19,7 @@ struct Dot {
   Eigen::Vector2d px = Eigen::Vector2d::Zero();       // centre, pixels (DotOptions::centre)
   Eigen::Matrix2d cov_px2 = Eigen::Matrix2d::Zero();  // covariance of the centre, px^2
   int num_pixels = 0;                                 // N, pixels above threshold
-  double peak = 0;  // highest signal in the blob (image units)
+  double peak = 0;                                    // highest signal in the blob (image units)
   bool fitted = false;  // centre and covariance from the Gaussian fit (else: weighted centroid)
   bool on_background = false;  // fitted over a background from other images (RefineDots...)
   int saturated_pixels = 0;
@@ -55,8 +55,8 @@ struct DotOptions {
   // brightness.
   int background_kernel_px = 11;
   DotCentre centre = DotCentre::kGaussianFit;
-  int fit_margin_px = 3;           // window = blob bounding box grown by this many pixels
-  double max_fit_shift_px = 1.5;   // a fit that moves the centre further is not used
+  int fit_margin_px = 3;          // window = blob bounding box grown by this many pixels
+  double max_fit_shift_px = 1.5;  // a fit that moves the centre further is not used
   // Background from other images (RefineDotOnBackground): each image's own dots are masked with
   // their blob box grown by this many pixels (the spot's tails below threshold).
   int background_mask_margin_px = 5;

@@ -57,7 +57,7 @@ TEST(PipelineSimTest, RecoversBeamsPlanesAndHonestSigmas) {
     // Beams with role estimate are also constrained by the reflections; the held-out beam only
     // by its sliding-plane dots.
     const bool held_out = b.beam == 3;
-    EXPECT_LT(err_deg, held_out ? 0.03 : 0.01) << "beam " << b.beam;
+    EXPECT_LT(err_deg, held_out ? 0.015 : 0.005) << "beam " << b.beam;  // 0.0094, 0.0024-0.0028
   }
   // Planes: one per scan trigger.
   ASSERT_EQ(r.out.planes.size(), r.sim->triggers().size());
@@ -95,17 +95,17 @@ TEST(PipelineSimTest, RecoversBeamsPlanesAndHonestSigmas) {
   std::printf("variance factors: corners %.3f dots %.3f; %d iterations, %.3f s in Ceres\n",
               r.out.mle.corner_variance_factor, r.out.mle.dot_variance_factor, r.out.mle.iterations,
               r.out.mle.solver_time_s);
-  EXPECT_LT(rms_deg, 0.03);
-  // The paper's worst proposed-model error; the held-out beam's own line error dominates it.
-  EXPECT_LT(r.out.rms_validation_deg, 0.042);
-  // {0} convention: trans from the neutral plane (home_frame.h); the old least-squares X_O was
-  // 0.3 mm off. Seed 3's default scene puts a neutral-frame dot on a board corner (0.4 px
-  // centroid bias, docs/solver.md), which costs 0.12 mm here and makes beta/trans 3-4x
-  // over-confident for this one scene; honesty over jittered scenes: solver_honesty_sim_test.
-  EXPECT_LT(trans_rms_mm, 0.2);
+  EXPECT_LT(rms_deg, 0.01);  // measured 0.0049
+  // Below the paper's best proposed-model error; the held-out beam's own line dominates it.
+  EXPECT_LT(r.out.rms_validation_deg, 0.02);  // measured 0.0148
+  // {0} convention: trans from the neutral plane (home_frame.h). With the top-hat centroid a
+  // neutral-frame dot on a board corner cost 0.12 mm here; fitted over a measured background
+  // (docs/solver.md, "Dots") it is 0.0076 mm.
+  EXPECT_LT(trans_rms_mm, 0.02);
+  // One scene (measured 1.13 / 1.23 / 1.16); honesty over 8 scenes: solver_honesty_sim_test.
   for (int k = 0; k < 3; ++k) {
-    EXPECT_GT(z(k), 0.5) << "component " << k;
-    EXPECT_LT(z(k), 5.0) << "component " << k;
+    EXPECT_GT(z(k), 0.6) << "component " << k;
+    EXPECT_LT(z(k), 1.6) << "component " << k;
   }
 }
 
@@ -136,8 +136,14 @@ TEST(PipelineSimTest, DropsStep1FrameWithInconsistentBeamLabels) {
     const auto& truth = r.sim->beams_in_world()[b.beam - 1];
     EXPECT_LT(geometry::AngleBetween(b.v, truth.v) * kRadToDeg, 0.03) << "beam " << b.beam;
   }
-  // step2/0005.png (3 triggers) loses a dot: every other trigger gets its plane.
-  EXPECT_GE(r.out.planes.size() + 3, r.sim->triggers().size());
+  // step2/0005.png (3 triggers) loses a dot: its two complete triggers are kept, so every
+  // trigger but one gets its plane.
+  EXPECT_EQ(r.out.planes.size() + 1, r.sim->triggers().size());
+  const std::string partial =
+      "step2/0005.png: 8 of 9 laser dots found; 2 of 3 trigger(s) grouped and kept";
+  bool partial_noted = false;
+  for (const auto& n : r.out.notes) partial_noted = partial_noted || n == partial;
+  EXPECT_TRUE(partial_noted);
   EXPECT_LT(r.out.rms_validation_deg, 0.042);
 }
 
@@ -160,6 +166,12 @@ TEST(PipelineErrorsTest, InvalidOptionsNameTheField) {
   o.ransac_iterations = 0;
   EXPECT_NE(o.Validate().find("ransac_iterations = 0"), std::string::npos);
   EXPECT_THROW(SolveRecording(dataset::Recording{}, {}, o), SolveError);
+  PipelineOptions p;
+  p.partial_frame_group_residual_px = 0;
+  EXPECT_NE(p.Validate().find("partial_frame_group_residual_px = 0"), std::string::npos);
+  PipelineOptions d;
+  d.dots.max_fit_shift_px = -1;
+  EXPECT_NE(d.Validate().find("max_fit_shift_px = -1"), std::string::npos);
 }
 
 }  // namespace

@@ -6,10 +6,10 @@
 #include <Eigen/Dense>
 #include <cmath>
 #include <cstdio>
+#include <opencv2/imgproc.hpp>
 
 #include "mocks/rig/rig_simulator.h"
 #include "processing/vision/dots.h"
-#include <opencv2/imgproc.hpp>
 
 namespace msmcal::vision {
 namespace {
@@ -50,8 +50,8 @@ void Collect(const sim::Scene& scene, const cv::Mat& img, Stats* s,
   }
 }
 
-// The paper's centroid: its covariance (pixel scatter / N) overstates the renderer's centroid error about 4x
-// in sigma: the MLE's variance factors must bring it down.
+// The paper's centroid: its covariance (pixel scatter / N) overstates the renderer's centroid error
+// about 4x in sigma: the MLE's variance factors must bring it down.
 TEST(DotsRenderTest, ScatterOverNOverstatesTheCentroidError) {
   Stats s1, s2;
   sim::SimOptions o;
@@ -170,8 +170,7 @@ TEST(DotsRenderTest, BackgroundFromOtherImagesMakesEdgeDotsAccurateAndHonest) {
           const Eigen::Vector2d c = mode == 0 ? d.centroid_px : d.px;
           if ((c - l.pixel).norm() >= 3) continue;
           const Eigen::Matrix2d cov =
-              mode == 0 ? Eigen::Matrix2d(d.scatter_px2 / d.num_pixels)
-                        : d.cov_px2;
+              mode == 0 ? Eigen::Matrix2d(d.scatter_px2 / d.num_pixels) : d.cov_px2;
           e2[cat] += (c - l.pixel).squaredNorm();
           v2[cat] += cov.trace();
           ++n[cat];
