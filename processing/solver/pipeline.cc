@@ -146,6 +146,8 @@ std::string PipelineOptions::Validate() const {
   std::ostringstream s;
   if (!(max_group_residual_px > 0))
     s << "max_group_residual_px = " << max_group_residual_px << " must be > 0";
+  else if (!(partial_frame_group_residual_px > 0))
+    s << "partial_frame_group_residual_px = " << partial_frame_group_residual_px << " must be > 0";
   else if (ransac_iterations < 1)
     s << "ransac_iterations = " << ransac_iterations << " must be >= 1";
   else if (!(ransac_inlier_deg > 0))
@@ -343,8 +345,7 @@ void RefineDotsOnBackgrounds(const std::vector<std::vector<size_t>>& groups,
     for (size_t i : groups[g]) {
       group_of[i] = static_cast<int>(g);
       const auto& m = (*measured)[i];
-      for (size_t k = 0; k < m.dots.size(); ++k)
-        windows[g].push_back({i, k});
+      for (size_t k = 0; k < m.dots.size(); ++k) windows[g].push_back({i, k});
     }
   }
   // Per image: its contribution to its group's windows, and its own dots' signal patches.
@@ -364,13 +365,13 @@ void RefineDotsOnBackgrounds(const std::vector<std::vector<size_t>>& groups,
         sizes[i] = img.size();
         std::vector<cv::Rect> rects;
         for (const Window& w : windows[group_of[i]])
-          rects.push_back(vision::DotFitWindow((*measured)[w.image].dots[w.dot], img.size(),
-                                               dot_options));
+          rects.push_back(
+              vision::DotFitWindow((*measured)[w.image].dots[w.dot], img.size(), dot_options));
         contribution[i] =
             vision::BackgroundContribution(img, (*measured)[i].dots, rects, dot_options);
         for (const auto& d : (*measured)[i].dots)
-          own[i].push_back(vision::ReadDotSignal(img, vision::DotFitWindow(d, img.size(),
-                                                                           dot_options)));
+          own[i].push_back(
+              vision::ReadDotSignal(img, vision::DotFitWindow(d, img.size(), dot_options)));
       } catch (...) {
         errors[i] = std::current_exception();
       }
@@ -473,6 +474,15 @@ SolveOutput SolveRecording(const dataset::Recording& rec, const ImageLoader& loa
         for (size_t i = 0; i < rec.step2.size(); ++i)
           static_groups.back().push_back(rec.step1.size() + i);
         RefineDotsOnBackgrounds(static_groups, files, load, o.dots, o.image_threads, &measured);
+        int on_background = 0, top_hat = 0, centroid = 0;
+        for (const auto& m : measured)
+          for (const auto& d : m.dots)
+            (d.on_background ? on_background : d.fitted ? top_hat : centroid)++;
+        out.notes.push_back("dots: " + std::to_string(on_background) +
+                            " fitted over a background measured in other images, " +
+                            std::to_string(top_hat) +
+                            " over the top-hat (no dot-free view of their window), " +
+                            std::to_string(centroid) + " weighted centroids (fit failed)");
       }
     } catch (const SolveError& e) {
       throw fail(e.what());
@@ -504,6 +514,11 @@ SolveOutput SolveRecording(const dataset::Recording& rec, const ImageLoader& loa
       continue;
     }
     auto dots = DotsOnBoard(m.dots, *boards[1], sliding_size);
+    if (f.beams.empty() && !dots.empty()) {
+      out.notes.push_back(f.file + ": background frame (every beam blocked) shows " +
+                          std::to_string(dots.size()) + " dot-like blob(s); ignored");
+      dots.clear();
+    }
     if (dots.size() > f.beams.size()) {
       // Surplus blobs (checkerboard-junction residue): keep the roundest, say so.
       auto elongation = [](const vision::Dot& d) {
@@ -694,6 +709,7 @@ SolveOutput SolveRecording(const dataset::Recording& rec, const ImageLoader& loa
     std::vector<vision::Dot> dots;
     std::vector<Eigen::Vector3d> dots_in_world;
     std::vector<bool> near_edge;
+    bool partial = false;  // fewer dots than triggers x beams
   };
   std::vector<S2> s2;
   std::optional<Rigid3d> c2_from_world;
@@ -706,16 +722,20 @@ SolveOutput SolveRecording(const dataset::Recording& rec, const ImageLoader& loa
     }
     const size_t triggers = f.kind == Step2Kind::kNeutral ? 1 : f.triggers.size();
     const auto dots = DotsOnBoard(m.dots, *board, world_size);
-    if (dots.size() != triggers * f.beams.size()) {
-      out.dropped.push_back(
-          {f.file, "found " + std::to_string(dots.size()) + " laser dots, expected " +
-                       std::to_string(triggers * f.beams.size()) + " (" + std::to_string(triggers) +
-                       " trigger(s) x " + std::to_string(f.beams.size()) + " beam(s))"});
+    const size_t expected = triggers * f.beams.size();
+    // Fewer dots than expected (two spots merged, one off the board): the triggers whose dots
+    // are all there are still grouped, under a tighter tolerance (below).
+    const bool partial = dots.size() < expected && dots.size() >= 2;
+    if (dots.size() != expected && !partial) {
+      out.dropped.push_back({f.file, "found " + std::to_string(dots.size()) +
+                                         " laser dots, expected " + std::to_string(expected) +
+                                         " (" + std::to_string(triggers) + " trigger(s) x " +
+                                         std::to_string(f.beams.size()) + " beam(s))"});
       continue;
     }
     obs.corners.push_back({BoardView::kC2World, -1, world_pts, board->corners_px});
     if (!c2_from_world) c2_from_world = SolvePlanarPnP(rec.camera, world_pts, board->corners_px);
-    s2.push_back({&f, dots, {}, {}});
+    s2.push_back({&f, dots, {}, {}, partial});
   }
   if (!c2_from_world)
     throw fail("step2: the world board (" + SizeText(rec.world_board) +
@@ -753,6 +773,9 @@ SolveOutput SolveRecording(const dataset::Recording& rec, const ImageLoader& loa
     }
     const int n = static_cast<int>(s.dots.size());
     const size_t want = s.frame->kind == Step2Kind::kNeutral ? 1 : s.frame->triggers.size();
+    const double max_score =
+        s.partial ? std::min(o.max_group_residual_px, o.partial_frame_group_residual_px)
+                  : o.max_group_residual_px;
     struct Candidate {
       double score;
       std::map<int, int> dot_of_beam;
@@ -789,7 +812,7 @@ SolveOutput SolveRecording(const dataset::Recording& rec, const ImageLoader& loa
           c.score += (*px - s.dots[best].px).norm();
           c.dot_of_beam[b] = best;
         }
-        c.score /= static_cast<double>(e.size() + v.size());
+        c.score /= static_cast<double>(c.dot_of_beam.size());
         cands.push_back(std::move(c));
         return;
       }
@@ -805,7 +828,7 @@ SolveOutput SolveRecording(const dataset::Recording& rec, const ImageLoader& loa
     std::vector<bool> used(n, false);
     std::vector<Group> accepted;
     for (const auto& c : cands) {
-      if (accepted.size() == want || c.score > o.max_group_residual_px) break;
+      if (accepted.size() == want || c.score > max_score) break;
       bool free = true;
       for (const auto& [b, d] : c.dot_of_beam) free = free && !used[d];
       std::set<int> distinct;
@@ -814,10 +837,19 @@ SolveOutput SolveRecording(const dataset::Recording& rec, const ImageLoader& loa
       for (const auto& [b, d] : c.dot_of_beam) used[d] = true;
       accepted.push_back(Group{static_cast<int>(fi), c.dot_of_beam, c.plane, 0});
     }
-    if (accepted.size() != want) {
-      out.dropped.push_back({s.frame->file, "could group only " + std::to_string(accepted.size()) +
-                                                " of " + std::to_string(want) +
-                                                " trigger(s) into consistent mirror planes"});
+    if (s.partial && !accepted.empty()) {
+      out.notes.push_back(s.frame->file + ": " + std::to_string(n) + " of " +
+                          std::to_string(want * s.frame->beams.size()) + " laser dots found; " +
+                          std::to_string(accepted.size()) + " of " + std::to_string(want) +
+                          " trigger(s) grouped and kept");
+    } else if (accepted.size() != want) {
+      out.dropped.push_back(
+          {s.frame->file,
+           (s.partial ? "found " + std::to_string(n) + " of " +
+                            std::to_string(want * s.frame->beams.size()) + " laser dots and "
+                      : std::string()) +
+               "could group only " + std::to_string(accepted.size()) + " of " +
+               std::to_string(want) + " trigger(s) into consistent mirror planes"});
       continue;
     }
     for (auto& g : accepted) groups.push_back(std::move(g));
