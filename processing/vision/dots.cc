@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdint>
 #include <cstring>
+#include <limits>
 #include <opencv2/imgproc.hpp>
 #include <sstream>
 #include <stdexcept>
@@ -12,16 +13,21 @@
 namespace msmcal::vision {
 namespace {
 
-// Signal of one pixel: mono brightness, or green minus max(blue, red) in BGR.
+// Signal of one pixel: mono brightness, or the green channel in BGR.
 template <typename T, int kChannels>
 inline int Signal(const T* row, int x) {
   if constexpr (kChannels == 1) {
     return row[x];
   } else {
-    const T* p = row + 3 * x;
-    const int other = std::max<int>(p[0], p[2]);
-    return static_cast<int>(p[1]) - other;
+    return row[3 * x + 1];
   }
+}
+
+// BGR: green minus the larger of blue and red (laser light vs white light).
+template <typename T>
+inline int GreenExcess(const T* row, int x) {
+  const T* p = row + 3 * x;
+  return static_cast<int>(p[1]) - std::max<int>(p[0], p[2]);
 }
 
 template <typename T, int kChannels>
@@ -289,6 +295,8 @@ std::string DotOptions::Validate() const {
     s << "fit_margin_px = " << fit_margin_px << " must be in [0, 50]";
   else if (!(max_fit_shift_px > 0))
     s << "max_fit_shift_px = " << max_fit_shift_px << " must be > 0";
+  else if (!(min_green_excess_fraction >= 0 && min_green_excess_fraction < 1))
+    s << "min_green_excess_fraction = " << min_green_excess_fraction << " must be in [0, 1)";
   else if (background_mask_margin_px < 0 || background_mask_margin_px > 50)
     s << "background_mask_margin_px = " << background_mask_margin_px << " must be in [0, 50]";
   return s.str();
@@ -310,45 +318,51 @@ std::vector<Dot> DetectDots(const cv::Mat& image, const DotOptions& options,
   const int full = image.depth() == CV_16U ? 65535 : 255;
   const int threshold =
       std::max(1, static_cast<int>(std::lround(options.threshold_fraction * full)));
+  // BGR: the green channel is the signal (see the header); greenness is checked per blob.
+  thread_local cv::Mat green;
+  const bool bgr = image.channels() == 3;
+  cv::Mat mono = image;
+  if (bgr) {
+    cv::extractChannel(image, green, 1);
+    mono = green;
+  }
   // The top-hat goes into its own buffer: the caller's image is const and is read below for
   // saturation.
-  cv::Mat signal = image;
-  if (image.channels() == 1 && options.background_kernel_px > 0) {
+  cv::Mat signal = mono;
+  if (options.background_kernel_px > 0) {
     // Top-hat: bright structures smaller than the kernel (dots) over the local background
     // (board squares).
     const cv::Mat kernel = cv::getStructuringElement(
         cv::MORPH_RECT, cv::Size(options.background_kernel_px, options.background_kernel_px));
-    cv::erode(image, eroded, kernel);
+    cv::erode(mono, eroded, kernel);
     cv::dilate(eroded, opened, kernel);
-    cv::subtract(image, opened, top_hat);
+    cv::subtract(mono, opened, top_hat);
     signal = top_hat;
   }
   // Pixels at or above the threshold: the flood fill's seeds and extent.
-  if (image.channels() == 1) {
-    cv::compare(signal, threshold, candidates, cv::CMP_GE);
-  } else {
-    candidates.create(image.rows, image.cols);
-    for (int y = 0; y < image.rows; ++y) {
-      uchar* c = candidates.ptr<uchar>(y);
-      if (image.depth() == CV_8U) {
-        const uint8_t* r = image.ptr<uint8_t>(y);
-        for (int x = 0; x < image.cols; ++x) c[x] = Signal<uint8_t, 3>(r, x) >= threshold;
-      } else {
-        const uint16_t* r = image.ptr<uint16_t>(y);
-        for (int x = 0; x < image.cols; ++x) c[x] = Signal<uint16_t, 3>(r, x) >= threshold;
-      }
+  cv::compare(signal, threshold, candidates, cv::CMP_GE);
+  DotRejections local;
+  std::vector<Dot> dots = mono.depth() == CV_8U
+                              ? Detect<uint8_t, 1>(signal, mono, candidates, options, &local)
+                              : Detect<uint16_t, 1>(signal, mono, candidates, options, &local);
+  if (bgr) {
+    const int min_excess = static_cast<int>(std::lround(options.min_green_excess_fraction * full));
+    std::vector<Dot> green_dots;
+    for (const Dot& d : dots) {
+      int best = std::numeric_limits<int>::min();
+      for (int y = d.blob_box.y; y < d.blob_box.y + d.blob_box.height; ++y)
+        for (int x = d.blob_box.x; x < d.blob_box.x + d.blob_box.width; ++x)
+          best = std::max(best, image.depth() == CV_8U ? GreenExcess(image.ptr<uint8_t>(y), x)
+                                                       : GreenExcess(image.ptr<uint16_t>(y), x));
+      if (best >= min_excess)
+        green_dots.push_back(d);
+      else
+        ++local.not_green;
     }
+    dots = std::move(green_dots);
   }
-  switch (image.type()) {
-    case CV_8UC1:
-      return Detect<uint8_t, 1>(signal, image, candidates, options, rejections);
-    case CV_8UC3:
-      return Detect<uint8_t, 3>(image, image, candidates, options, rejections);
-    case CV_16UC1:
-      return Detect<uint16_t, 1>(signal, image, candidates, options, rejections);
-    default:  // CV_16UC3
-      return Detect<uint16_t, 3>(image, image, candidates, options, rejections);
-  }
+  if (rejections) *rejections = local;
+  return dots;
 }
 
 cv::Rect DotFitWindow(const Dot& dot, const cv::Size& image_size, const DotOptions& options) {

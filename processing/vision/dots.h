@@ -3,9 +3,12 @@
 // centroid and its covariance = pixel scatter / N; optionally (the default) the centre is then
 // refined by a least-squares fit of a clipped Gaussian spot (DotCentre::kGaussianFit).
 //
-// Images: CV_8U or CV_16U, 1 channel (mono: brightness) or 3 channels (BGR: the green channel
-// minus the larger of blue and red, so that white board squares do not count as laser light).
-// In mono images the local background (board squares) is removed first by a top-hat.
+// Images: CV_8U or CV_16U, 1 channel (mono: brightness) or 3 channels (BGR: the green channel,
+// and a blob counts as laser light only if somewhere it is greener than it is blue or red, by
+// `min_green_excess_fraction`: white board squares and specks are not). The local background
+// (board squares) is removed first by a top-hat. Green minus max(blue, red) is not the signal:
+// a green spot saturates the green channel on a light square while blue and red still rise,
+// and the spot vanishes from it.
 // Pixel (0, 0) is the centre of the top-left pixel.
 
 #include <Eigen/Core>
@@ -50,10 +53,13 @@ struct DotOptions {
   double max_elongation = 1.3;
   // Fraction of a blob's pixels allowed at full scale (saturated) before it is rejected.
   double max_saturated_fraction = 0.9;
-  // Mono images: the signal is the white top-hat with this square kernel (odd, pixels; larger
-  // than a dot, smaller than a board square), so dots on light squares stand out. 0: raw
-  // brightness.
+  // The signal (mono brightness, BGR green) is the white top-hat with this square kernel (odd,
+  // pixels; larger than a dot, smaller than a board square), so dots on light squares stand out. 0:
+  // raw brightness.
   int background_kernel_px = 11;
+  // BGR only: a blob is kept if its largest green - max(blue, red) reaches this fraction of
+  // full scale.
+  double min_green_excess_fraction = 0.05;
   DotCentre centre = DotCentre::kGaussianFit;
   int fit_margin_px = 3;          // window = blob bounding box grown by this many pixels
   double max_fit_shift_px = 1.5;  // a fit that moves the centre further is not used
@@ -65,6 +71,7 @@ struct DotOptions {
 
 struct DotRejections {
   int too_small = 0, too_large = 0, elongated = 0, saturated = 0;
+  int not_green = 0;      // BGR: blobs nowhere greener than blue and red
   int fit_fallbacks = 0;  // kept dots whose Gaussian fit was not used (centroid kept)
 };
 

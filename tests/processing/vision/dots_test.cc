@@ -27,6 +27,18 @@ cv::Mat ToType(const cv::Mat1f& f, int depth) {
   return out;
 }
 
+double NearestError(const std::vector<Dot>& dots, double u, double v, const Dot** which = nullptr) {
+  double best = 1e9;
+  for (const auto& d : dots) {
+    const double e = std::hypot(d.px.x() - u, d.px.y() - v);
+    if (e < best) {
+      best = e;
+      if (which) *which = &d;
+    }
+  }
+  return best;
+}
+
 struct Truth {
   double u, v;
 };
@@ -65,6 +77,33 @@ TEST(DetectDotsTest, GreenDotsInColourIgnoreWhiteSquares) {
   cv::merge(ch, bgr);
   const auto dots = DetectDots(bgr);
   EXPECT_EQ(dots.size(), Spots().size());
+}
+
+// BGR: a green spot on a light square saturates green while blue and red still rise (the
+// simulator's spot weights): it is found through the green channel's top-hat and fitted by its
+// flanks; a small white speck of the same size is not green and is rejected.
+TEST(DetectDotsTest, GreenSpotSaturatedOnLightSquareAndWhiteSpeck) {
+  cv::Mat1f spot(160, 160, 0.0f);
+  AddSpot(spot, 60.3, 70.6, 1.7, 0.7);
+  cv::Mat1f grey(160, 160, 0.06f);
+  grey(cv::Rect(30, 30, 70, 80)) = 0.8f;   // light square under the spot
+  grey(cv::Rect(120, 120, 5, 5)) = 0.95f;  // white speck, dot-sized
+  const double weight[3] = {0.20, 1.0, 0.12};
+  std::vector<cv::Mat> ch;
+  for (int c = 0; c < 3; ++c) {
+    cv::Mat1f level = grey + spot * weight[c];
+    cv::min(level, 1.0f, level);
+    ch.push_back(ToType(level, CV_8U));
+  }
+  cv::Mat bgr;
+  cv::merge(ch, bgr);
+  DotRejections rej;
+  const auto dots = DetectDots(bgr, {}, &rej);
+  ASSERT_EQ(dots.size(), 1u);
+  EXPECT_EQ(rej.not_green, 1);
+  EXPECT_GT(dots[0].saturated_pixels, 0);
+  EXPECT_TRUE(dots[0].fitted);
+  EXPECT_LT(NearestError(dots, 60.3, 70.6), 0.03);
 }
 
 TEST(DetectDotsTest, DotOnLightSquareFoundThroughTopHat) {
@@ -126,18 +165,6 @@ TEST(DotOptionsTest, ValidateNamesTheField) {
 }
 
 // ---- The Gaussian fit (DotCentre::kGaussianFit) ----
-
-double NearestError(const std::vector<Dot>& dots, double u, double v, const Dot** which = nullptr) {
-  double best = 1e9;
-  for (const auto& d : dots) {
-    const double e = std::hypot(d.px.x() - u, d.px.y() - v);
-    if (e < best) {
-      best = e;
-      if (which) *which = &d;
-    }
-  }
-  return best;
-}
 
 // Noiseless spots: the centroid is biased by the threshold cut at pixel boundaries, the fit is
 // not (Mono16: no quantisation to speak of).
