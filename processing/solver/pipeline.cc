@@ -287,42 +287,48 @@ class OpenCvSerial {
   int previous_;
 };
 
+// Runs fn(0) .. fn(count - 1), `threads` at a time (each index on one thread); rethrows the
+// exception of the first failing index, so the error does not depend on the scheduling.
+void ForEachImage(size_t count, int threads, const std::function<void(size_t)>& fn) {
+  std::vector<std::exception_ptr> errors(count);
+  std::atomic<size_t> next{0};
+  auto work = [&] {
+    for (size_t i = next++; i < count; i = next++) {
+      try {
+        fn(i);
+      } catch (...) {
+        errors[i] = std::current_exception();
+      }
+    }
+  };
+  const size_t n = std::min<size_t>(static_cast<size_t>(threads), std::max<size_t>(1, count));
+  std::vector<std::thread> pool;
+  for (size_t t = 1; t < n; ++t) pool.emplace_back(work);
+  work();
+  for (auto& t : pool) t.join();
+  for (const auto& e : errors)
+    if (e) std::rethrow_exception(e);
+}
+
 std::vector<ImageMeasurement> MeasureImages(
     const std::vector<std::string>& files,
     const std::vector<std::vector<vision::BoardSize>>& boards, const ImageLoader& load,
     const vision::DotOptions& dot_options, const vision::CheckerboardOptions& board_options,
     int threads) {
   std::vector<ImageMeasurement> out(files.size());
-  std::vector<std::exception_ptr> errors(files.size());
-  std::atomic<size_t> next{0};
-  auto work = [&] {
-    for (size_t i = next++; i < files.size(); i = next++) {
-      try {
-        // OpenCV's detectors draw from the calling thread's cv::theRNG(): reseed it per image so
-        // that an image's measurement does not depend on which images its thread measured
-        // before.
-        cv::theRNG() = cv::RNG(0x6d736d63616cULL);
-        const cv::Mat img = load(files[i]);
-        if (img.empty()) throw SolveError(files[i] + ": cannot read the image");
-        ImageMeasurement& m = out[i];
-        if (boards[i].size() == 1)
-          m.boards = {vision::DetectCheckerboard(img, boards[i][0], board_options)};
-        else
-          m.boards = vision::DetectCheckerboards(img, boards[i], board_options);
-        if (!m.boards.empty() && m.boards.back()) m.dots = vision::DetectDots(img, dot_options);
-      } catch (...) {
-        errors[i] = std::current_exception();
-      }
-    }
-  };
-  const size_t n =
-      std::min<size_t>(static_cast<size_t>(threads), std::max<size_t>(1, files.size()));
-  std::vector<std::thread> pool;
-  for (size_t t = 1; t < n; ++t) pool.emplace_back(work);
-  work();
-  for (auto& t : pool) t.join();
-  for (const auto& e : errors)
-    if (e) std::rethrow_exception(e);  // the first failing image in plan order
+  ForEachImage(files.size(), threads, [&](size_t i) {
+    // OpenCV's detectors draw from the calling thread's cv::theRNG(): reseed it per image so
+    // that an image's measurement does not depend on which images its thread measured before.
+    cv::theRNG() = cv::RNG(0x6d736d63616cULL);
+    const cv::Mat img = load(files[i]);
+    if (img.empty()) throw SolveError(files[i] + ": cannot read the image");
+    ImageMeasurement& m = out[i];
+    if (boards[i].size() == 1)
+      m.boards = {vision::DetectCheckerboard(img, boards[i][0], board_options)};
+    else
+      m.boards = vision::DetectCheckerboards(img, boards[i], board_options);
+    if (!m.boards.empty() && m.boards.back()) m.dots = vision::DetectDots(img, dot_options);
+  });
   return out;
 }
 
@@ -351,40 +357,22 @@ void RefineDotsOnBackgrounds(const std::vector<std::vector<size_t>>& groups,
   // Per image: its contribution to its group's windows, and its own dots' signal patches.
   std::vector<std::vector<vision::BackgroundPatch>> contribution(files.size());
   std::vector<std::vector<vision::DotSignalPatch>> own(files.size());
-  std::vector<std::exception_ptr> errors(files.size());
   // A dot's window needs its image's size; a group whose images differ in size is skipped.
   std::vector<cv::Size> sizes(files.size());
-  std::atomic<size_t> next{0};
-  auto work = [&] {
-    for (size_t i = next++; i < files.size(); i = next++) {
-      if (group_of[i] < 0 || (*measured)[i].boards.empty() || !(*measured)[i].boards.back())
-        continue;
-      try {
-        const cv::Mat img = load(files[i]);
-        if (img.empty()) throw SolveError(files[i] + ": cannot read the image");
-        sizes[i] = img.size();
-        std::vector<cv::Rect> rects;
-        for (const Window& w : windows[group_of[i]])
-          rects.push_back(
-              vision::DotFitWindow((*measured)[w.image].dots[w.dot], img.size(), dot_options));
-        contribution[i] =
-            vision::BackgroundContribution(img, (*measured)[i].dots, rects, dot_options);
-        for (const auto& d : (*measured)[i].dots)
-          own[i].push_back(
-              vision::ReadDotSignal(img, vision::DotFitWindow(d, img.size(), dot_options)));
-      } catch (...) {
-        errors[i] = std::current_exception();
-      }
-    }
-  };
-  const size_t n =
-      std::min<size_t>(static_cast<size_t>(threads), std::max<size_t>(1, files.size()));
-  std::vector<std::thread> pool;
-  for (size_t t = 1; t < n; ++t) pool.emplace_back(work);
-  work();
-  for (auto& t : pool) t.join();
-  for (const auto& e : errors)
-    if (e) std::rethrow_exception(e);
+  ForEachImage(files.size(), threads, [&](size_t i) {
+    if (group_of[i] < 0 || (*measured)[i].boards.empty() || !(*measured)[i].boards.back()) return;
+    const cv::Mat img = load(files[i]);
+    if (img.empty()) throw SolveError(files[i] + ": cannot read the image");
+    sizes[i] = img.size();
+    std::vector<cv::Rect> rects;
+    for (const Window& w : windows[group_of[i]])
+      rects.push_back(
+          vision::DotFitWindow((*measured)[w.image].dots[w.dot], img.size(), dot_options));
+    contribution[i] = vision::BackgroundContribution(img, (*measured)[i].dots, rects, dot_options);
+    for (const auto& d : (*measured)[i].dots)
+      own[i].push_back(
+          vision::ReadDotSignal(img, vision::DotFitWindow(d, img.size(), dot_options)));
+  });
   for (size_t g = 0; g < groups.size(); ++g) {
     if (windows[g].empty()) continue;
     bool same_size = true;
