@@ -51,8 +51,12 @@ struct DotOptions {
   // Ratio of the scatter's principal std devs. Laser spots are round (<= 1.2 in the simulator even
   // on oblique boards); checkerboard X-junction residue of the top-hat is >= 1.4.
   double max_elongation = 1.3;
-  // Fraction of a blob's pixels allowed at full scale (saturated) before it is rejected.
-  double max_saturated_fraction = 0.9;
+  // Fraction of a blob's pixels allowed at full scale (saturated) before it is rejected. The
+  // Gaussian fit places a clipped spot by its flanks (below threshold too), so the default keeps
+  // them all: a spot on a light square is a saturated plateau in the top-hat, 80-95 % of its
+  // blob (0.9 lost such dots at random, and with them whole sessions). With
+  // DotCentre::kWeightedCentroid a saturated centre is unusable: use about 0.5.
+  double max_saturated_fraction = 1.0;
   // The signal (mono brightness, BGR green) is the white top-hat with this square kernel (odd,
   // pixels; larger than a dot, smaller than a board square), so dots on light squares stand out. 0:
   // raw brightness.

@@ -2,7 +2,7 @@
 // (scene jittered per seed), the errors of the solved poses (alpha, beta, trans in {0}) against
 // the simulator's truth in the same {0} convention, divided by their predicted sigmas, and the
 // validation dots' normalised errors have unit RMS within +-25 %. Measured (the solve is
-// reproducible, so these are exact): alpha 0.80, beta 1.16, trans 1.20, validation 0.84, with
+// reproducible, so these are exact): alpha 0.80, beta 1.16, trans 1.20, validation 0.85, with
 // dots fitted over a background measured in the other images of their static scene
 // (docs/solver.md, "Dots"). Before that fit: 1.60 / 1.38 / 1.38 / 1.10. Also prints the errors
 // of the shared parameters (camera poses, beams) and of the planes that define {0}.
@@ -175,7 +175,7 @@ TEST(HonestySimTest, NormalisedErrorsHaveUnitRms) {
               za.Rms(), zb.Rms(), zt.Rms(), zv.Rms());
   std::printf("trans error vs truth RMS %.4f mm\n", trans_err.Rms());
   EXPECT_EQ(skipped, 0);
-  EXPECT_LT(trans_err.Rms(), 0.02);  // measured 0.0084 mm
+  EXPECT_LT(trans_err.Rms(), 0.02);  // measured 0.0085 mm
   for (double z : {za.Rms(), zb.Rms(), zt.Rms(), zv.Rms()}) {
     EXPECT_GE(z, 0.75);
     EXPECT_LE(z, 1.25);
