@@ -68,8 +68,12 @@ bool FitGaussian(const std::vector<FitPixel>& px, Dot* dot) {
   const Eigen::Matrix2d p0 = (1.5 * scatter).inverse();
   Vec th;
   th << dot->px.x(), dot->px.y(), dot->peak, 0.0, p0(0, 0), p0(0, 1), p0(1, 1);
+  // Cost at t; with jtj, also J^T J, J^T r and the number of pixels that constrain the fit
+  // (all but clipped ones the model exceeds).
+  int used = 0;
   auto evaluate = [&](const Vec& t, Mat* jtj, Vec* jtr) {
     double cost = 0;
+    if (jtj) used = 0;
     if (jtj) jtj->setZero(), jtr->setZero();
     for (const Px& q : px) {
       const double dx = q.x - t(0), dy = q.y - t(1);
@@ -81,6 +85,7 @@ bool FitGaussian(const std::vector<FitPixel>& px, Dot* dot) {
       if (r == 0 && q.censored) continue;
       cost += r * r;
       if (!jtj) continue;
+      ++used;
       const double ag = t(2) * g;
       Vec j;
       j << ag * (t(4) * dx + t(5) * dy), ag * (t(5) * dx + t(6) * dy), g, 1.0, -0.5 * ag * dx * dx,
@@ -125,14 +130,8 @@ bool FitGaussian(const std::vector<FitPixel>& px, Dot* dot) {
     }
   }
   if (!converged || !valid(th)) return false;
-  // Covariance of the centre: residual variance x (J^T J)^-1 over the pixels that constrain it.
-  int used = 0;
-  for (const Px& q : px) {
-    const double dx = q.x - th(0), dy = q.y - th(1);
-    const double m =
-        th(3) + th(2) * std::exp(-0.5 * (th(4) * dx * dx + 2 * th(5) * dx * dy + th(6) * dy * dy));
-    if (!(q.censored && m >= q.s)) ++used;
-  }
+  // Covariance of the centre: residual variance x (J^T J)^-1 over the pixels that constrain it
+  // (jtj, jtr and used are those of th: evaluated when it was accepted).
   if (used <= kP) return false;
   const double s2 = cost / (used - kP);
   const Eigen::LDLT<Mat> ldlt(jtj);
@@ -146,24 +145,27 @@ bool FitGaussian(const std::vector<FitPixel>& px, Dot* dot) {
   return true;
 }
 
-// The pixels of window [x0, x1] x [y0, y1] for FitGaussian.
-template <typename T, int kChannels>
-std::vector<FitPixel> WindowPixels(const cv::Mat& signal_image, const cv::Mat& original, int full,
-                                   int x0, int y0, int x1, int y1) {
+// The pixels of `window` of a one-channel signal image for FitGaussian; saturation is read
+// from `original` (the image before the top-hat).
+template <typename T>
+std::vector<FitPixel> WindowPixels(const cv::Mat& signal_image, const cv::Mat& original,
+                                   const cv::Rect& window) {
+  const int full = sizeof(T) == 1 ? 255 : 65535;
   std::vector<FitPixel> px;
-  px.reserve(static_cast<size_t>((x1 - x0 + 1) * (y1 - y0 + 1)));
-  for (int y = y0; y <= y1; ++y) {
+  px.reserve(window.area());
+  for (int y = window.y; y < window.y + window.height; ++y) {
     const T* r = signal_image.ptr<T>(y);
     const T* o = original.ptr<T>(y);
-    for (int x = x0; x <= x1; ++x)
-      px.push_back({static_cast<double>(x), static_cast<double>(y),
-                    static_cast<double>(Signal<T, kChannels>(r, x)),
-                    Saturated<T, kChannels>(o, x, full)});
+    for (int x = window.x; x < window.x + window.width; ++x)
+      px.push_back({static_cast<double>(x), static_cast<double>(y), static_cast<double>(r[x]),
+                    o[x] >= full});
   }
   return px;
 }
 
-template <typename T, int kChannels>
+// Blobs of the one-channel `image` (signal) seeded and bounded by `candidates`; saturation is
+// read from `original`.
+template <typename T>
 std::vector<Dot> Detect(const cv::Mat& image, const cv::Mat& original, cv::Mat1b& candidates,
                         const DotOptions& o, DotRejections* rej) {
   const int full = sizeof(T) == 1 ? 255 : 65535;
@@ -193,9 +195,9 @@ std::vector<Dot> Detect(const cv::Mat& image, const cv::Mat& original, cv::Mat1b
         stack.pop_back();
         const T* r = image.ptr<T>(cy);
         // Weight = signal (the top-hat has already removed the background in mono images).
-        const double s = Signal<T, kChannels>(r, cx);
+        const double s = r[cx];
         ++acc.n;
-        if (Saturated<T, kChannels>(original.ptr<T>(cy), cx, full)) ++acc.saturated;
+        if (original.ptr<T>(cy)[cx] >= full) ++acc.saturated;
         acc.peak = std::max(acc.peak, s);
         acc.sw += s;
         acc.sw2 += s * s;
@@ -257,11 +259,8 @@ std::vector<Dot> Detect(const cv::Mat& image, const cv::Mat& original, cv::Mat1b
       dot.centroid_px = dot.px;
       dot.blob_box = cv::Rect(acc.x0, acc.y0, acc.x1 - acc.x0 + 1, acc.y1 - acc.y0 + 1);
       if (o.centre == DotCentre::kGaussianFit) {
-        const int m = o.fit_margin_px;
         Dot fit = dot;
-        if (FitGaussian(WindowPixels<T, kChannels>(
-                            image, original, full, std::max(0, acc.x0 - m), std::max(0, acc.y0 - m),
-                            std::min(w - 1, acc.x1 + m), std::min(h - 1, acc.y1 + m)),
+        if (FitGaussian(WindowPixels<T>(image, original, DotFitWindow(dot, image.size(), o)),
                         &fit) &&
             (fit.px - dot.px).norm() <= o.max_fit_shift_px)
           dot = fit;
@@ -343,8 +342,8 @@ std::vector<Dot> DetectDots(const cv::Mat& image, const DotOptions& options,
   cv::compare(signal, threshold, candidates, cv::CMP_GE);
   DotRejections local;
   std::vector<Dot> dots = mono.depth() == CV_8U
-                              ? Detect<uint8_t, 1>(signal, mono, candidates, options, &local)
-                              : Detect<uint16_t, 1>(signal, mono, candidates, options, &local);
+                              ? Detect<uint8_t>(signal, mono, candidates, options, &local)
+                              : Detect<uint16_t>(signal, mono, candidates, options, &local);
   if (bgr) {
     const int min_excess = static_cast<int>(std::lround(options.min_green_excess_fraction * full));
     std::vector<Dot> green_dots;
