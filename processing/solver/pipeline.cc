@@ -104,29 +104,58 @@ std::vector<vision::Dot> DotsOnBoard(const std::vector<vision::Dot>& dots,
   return out;
 }
 
+// The corners of `board` that no laser dot of the frame disturbs (their average over a view
+// leaves the others out).
+std::vector<char> CornersClearOfDots(const vision::CheckerboardDetection& board,
+                                     const std::vector<vision::Dot>& dots) {
+  std::vector<cv::Rect> boxes;
+  for (const auto& d : dots) boxes.push_back(d.blob_box);
+  return vision::CornersClearOfSpots(board, boxes);
+}
+
 // Frames of a static board seen by a fixed camera (the world board in every step 1 frame for
 // C1 and in every step 2 frame for C2, a sliding pose seen in several frames) repeat the same
 // view: their corner errors are mostly the detector's per-corner bias, the same in every frame,
 // not independent noise. Each view enters the MLE once, as the mean of its frames' corners, so
 // that the pose information is not counted K times (docs/solver.md, "Covariance honesty").
-std::vector<CornerSet> MergeRepeatedViews(const std::vector<CornerSet>& sets) {
-  std::vector<CornerSet> out;
-  std::vector<int> count;
-  for (const auto& cs : sets) {
-    int k = 0;
-    while (k < static_cast<int>(out.size()) &&
-           !(out[k].view == cs.view && out[k].pose == cs.pose && out[k].px.size() == cs.px.size()))
-      ++k;
-    if (k == static_cast<int>(out.size())) {
-      out.push_back(cs);
-      count.push_back(1);
-      continue;
+// A corner is averaged over the frames where it is clear of laser dots (`clear[k][i]`); a
+// corner that no frame sees clear is left out of the view. `dropped` counts those.
+std::vector<CornerSet> MergeRepeatedViews(const std::vector<CornerSet>& sets,
+                                          const std::vector<std::vector<char>>& clear,
+                                          int* dropped) {
+  std::vector<CornerSet> sum;
+  std::vector<std::vector<int>> count;
+  for (size_t k = 0; k < sets.size(); ++k) {
+    const CornerSet& cs = sets[k];
+    size_t v = 0;
+    while (v < sum.size() && !(sum[v].view == cs.view && sum[v].pose == cs.pose &&
+                               sum[v].px.size() == cs.px.size()))
+      ++v;
+    if (v == sum.size()) {
+      sum.push_back(cs);
+      for (auto& p : sum.back().px) p.setZero();
+      count.emplace_back(cs.px.size(), 0);
     }
-    for (size_t i = 0; i < cs.px.size(); ++i) out[k].px[i] += cs.px[i];
-    ++count[k];
+    for (size_t i = 0; i < cs.px.size(); ++i) {
+      if (!clear[k][i]) continue;
+      sum[v].px[i] += cs.px[i];
+      ++count[v][i];
+    }
   }
-  for (size_t k = 0; k < out.size(); ++k)
-    for (auto& p : out[k].px) p /= count[k];
+  std::vector<CornerSet> out;
+  *dropped = 0;
+  for (size_t v = 0; v < sum.size(); ++v) {
+    CornerSet m{sum[v].view, sum[v].pose, {}, {}};
+    for (size_t i = 0; i < sum[v].px.size(); ++i) {
+      if (count[v][i] == 0) {
+        ++*dropped;
+        continue;
+      }
+      m.points_in_board.push_back(sum[v].points_in_board[i]);
+      m.px.push_back(sum[v].px[i] / count[v][i]);
+    }
+    if (m.px.size() >= 4) out.push_back(std::move(m));
+  }
   return out;
 }
 
@@ -490,6 +519,7 @@ SolveOutput SolveRecording(const dataset::Recording& rec, const ImageLoader& loa
     std::vector<int> label;  // beam index per dot, -1 unknown
   };
   std::vector<S1> s1;
+  std::vector<std::vector<char>> corners_clear;  // per obs.corners entry: corner clear of dots
   std::map<int, int> pose_remap;
   std::optional<Rigid3d> c1_from_world;
   size_t c1_corners = 0;
@@ -532,6 +562,7 @@ SolveOutput SolveRecording(const dataset::Recording& rec, const ImageLoader& loa
     }
     if (boards[0]) {
       obs.corners.push_back({BoardView::kC1World, -1, world_pts, boards[0]->corners_px});
+      corners_clear.push_back(CornersClearOfDots(*boards[0], m.dots));
       if (world_pts.size() > c1_corners) {
         if (auto t = SolvePlanarPnP(rec.camera, world_pts, boards[0]->corners_px)) {
           c1_from_world = t;
@@ -544,6 +575,7 @@ SolveOutput SolveRecording(const dataset::Recording& rec, const ImageLoader& loa
     }
     const int pose = pose_remap.emplace(f.pose, static_cast<int>(pose_remap.size())).first->second;
     obs.corners.push_back({BoardView::kC1Sliding, pose, sliding_pts, boards[1]->corners_px});
+    corners_clear.push_back(CornersClearOfDots(*boards[1], m.dots));
     S1 s;
     s.file = f.file;
     s.pose = pose;
@@ -722,6 +754,7 @@ SolveOutput SolveRecording(const dataset::Recording& rec, const ImageLoader& loa
       continue;
     }
     obs.corners.push_back({BoardView::kC2World, -1, world_pts, board->corners_px});
+    corners_clear.push_back(CornersClearOfDots(*board, m.dots));
     if (!c2_from_world) c2_from_world = SolvePlanarPnP(rec.camera, world_pts, board->corners_px);
     s2.push_back({&f, dots, {}, {}, partial});
   }
@@ -923,7 +956,14 @@ SolveOutput SolveRecording(const dataset::Recording& rec, const ImageLoader& loa
                " usable fast_only mirror planes; {0} needs >= 2");
 
   // ---------------- Estimation ----------------
-  obs.corners = MergeRepeatedViews(obs.corners);
+  {
+    int dropped = 0;
+    obs.corners = MergeRepeatedViews(obs.corners, corners_clear, &dropped);
+    if (dropped > 0)
+      out.notes.push_back("corners: " + std::to_string(dropped) +
+                          " board corner(s) left out: a laser dot reached their refinement "
+                          "window in every frame of their view");
+  }
   std::string err;
   const auto init = InitialEstimate(obs, &err);
   if (!init) throw fail("initial values: " + err);

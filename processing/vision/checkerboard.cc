@@ -129,7 +129,21 @@ std::optional<CheckerboardDetection> DetectCheckerboard(const cv::Mat& image, Bo
   for (const auto& p : found) grid.emplace_back(p.x, p.y);
   CheckerboardDetection det;
   det.corners_px = CanonicalCornerOrder(grid, size, gray);
+  det.refine_half_window_px = win;
   return det;
+}
+
+std::vector<char> CornersClearOfSpots(const CheckerboardDetection& board,
+                                      const std::vector<cv::Rect>& spot_boxes) {
+  std::vector<char> clear(board.corners_px.size(), 1);
+  const double window = std::sqrt(2.0) * board.refine_half_window_px;
+  for (const auto& box : spot_boxes) {
+    const Eigen::Vector2d centre(box.x + 0.5 * (box.width - 1), box.y + 0.5 * (box.height - 1));
+    const double reach = 0.5 * std::hypot(box.width, box.height) + 3.0 + window;
+    for (size_t i = 0; i < clear.size(); ++i)
+      if ((board.corners_px[i] - centre).norm() < reach) clear[i] = 0;
+  }
+  return clear;
 }
 
 std::vector<Eigen::Vector2d> SquaresOutline(const CheckerboardDetection& board, BoardSize size,

@@ -31,6 +31,9 @@ struct CheckerboardOptions {
 
 struct CheckerboardDetection {
   std::vector<Eigen::Vector2d> corners_px;  // canonical order, size cols * rows
+  // Half size of the square window the sub-pixel refinement read around each corner: a bright
+  // spot (laser dot) reaching into it biases that corner (up to 1.6 px on the simulator).
+  int refine_half_window_px = 0;
 };
 
 // Finds one board of exactly `size` in `image` (8/16-bit, 1 or 3 channels). `mask` (optional,
@@ -39,6 +42,13 @@ struct CheckerboardDetection {
 std::optional<CheckerboardDetection> DetectCheckerboard(const cv::Mat& image, BoardSize size,
                                                         const CheckerboardOptions& options = {},
                                                         const cv::Mat& mask = cv::Mat());
+
+// Flags (1) the corners of `board` whose refinement window no bright spot reached. A spot is
+// given by its blob's bounding box (pixels above the dot threshold); its light reaches 3 px
+// beyond the box's half diagonal from the box centre. A laser dot in the window pulls the corner
+// (up to 1.6 px on the simulator's step 2, docs/solver.md "Checkerboards").
+std::vector<char> CornersClearOfSpots(const CheckerboardDetection& board,
+                                      const std::vector<cv::Rect>& spot_boxes);
 
 // Finds several boards of different sizes in one image: the one with more corners first, then the
 // others with the found boards masked out. Result i corresponds to sizes[i].
