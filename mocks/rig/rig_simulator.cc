@@ -12,7 +12,9 @@ namespace {
 
 constexpr double kDegToRad = std::numbers::pi / 180.0;
 constexpr double kRadToDeg = 180.0 / std::numbers::pi;
-constexpr double kMinStep1SeparationPx = 8.0;
+// Step 1 dots closer than this in one image are taken one beam at a time: their blobs merge
+// (9 px apart did, at an 18 deg spanning angle) or reach into each other's fit windows.
+constexpr double kMinStep1SeparationPx = 20.0;
 
 Eigen::Vector3d Vec(const std::array<double, 3>& a) { return {a[0], a[1], a[2]}; }
 
@@ -338,8 +340,9 @@ void RigSimulator::BuildFrames() {
   check_board("world board in C1", options_.world_board, c1_from_world_);
   check_board("world board in C2", options_.world_board, c2_from_world_);
 
-  // Step 1: per pose a frame with all beams (and a background frame with none), then
-  // identification frames at the last pose.
+  // Step 1: per pose a frame with all beams and a background frame with none; where two of the
+  // pose's dots would lie closer than kMinStep1SeparationPx, one frame per beam instead of the
+  // all-beams frame. Identification frames (one per beam) at the last pose.
   auto file = [](const char* step, size_t i) {
     char buf[64];
     std::snprintf(buf, sizeof(buf), "%s/%04zu.png", step, i);
@@ -348,9 +351,6 @@ void RigSimulator::BuildFrames() {
   for (int l = 0; l < s1.poses; ++l) {
     check_board("sliding board pose " + std::to_string(l) + " in C1", options_.sliding_board,
                 c1_from_sliding(l));
-    step1_.push_back({file("step1", step1_.size()), l, all_beams});
-    if (s1.background_frames && !(s1.identification_frames && l == s1.poses - 1))
-      step1_.push_back({file("step1", step1_.size()), l, {}});
     for (int id : all_beams) {
       const auto p = SlidingDotInWorld(id, l);
       const Eigen::Vector3d p_board =
@@ -360,20 +360,22 @@ void RigSimulator::BuildFrames() {
                             " misses the sliding board's inner area");
       }
     }
-  }
-  // Step 1 dots of one frame must stay apart to be extracted separately.
-  for (int l = 0; l < s1.poses; ++l) {
     const Scene scene = Step1Scene(l, all_beams);
-    for (size_t a = 0; a < scene.labels.size(); ++a) {
-      for (size_t b = a + 1; b < scene.labels.size(); ++b) {
-        if ((scene.labels[a].pixel - scene.labels[b].pixel).norm() < kMinStep1SeparationPx) {
-          warnings_.push_back("step1 pose " + std::to_string(l) + ": dots of beams " +
-                              std::to_string(scene.labels[a].beam) + " and " +
-                              std::to_string(scene.labels[b].beam) + " are closer than " +
-                              Fmt("%g px", kMinStep1SeparationPx));
-        }
-      }
+    bool close = false;
+    for (size_t a = 0; a < scene.labels.size(); ++a)
+      for (size_t b = a + 1; b < scene.labels.size(); ++b)
+        close |= (scene.labels[a].pixel - scene.labels[b].pixel).norm() < kMinStep1SeparationPx;
+    const bool identification = s1.identification_frames && l == s1.poses - 1;
+    if (close) {
+      if (!identification)
+        for (int id : all_beams) step1_.push_back({file("step1", step1_.size()), l, {id}});
+    } else {
+      step1_.push_back({file("step1", step1_.size()), l, all_beams});
     }
+    // Close dots reach into each other's windows, so their single-beam frames do not show every
+    // window pixel dot-free: those poses keep the background frame.
+    if (s1.background_frames && (!identification || close))
+      step1_.push_back({file("step1", step1_.size()), l, {}});
   }
   if (s1.identification_frames) {
     for (int id : all_beams) step1_.push_back({file("step1", step1_.size()), s1.poses - 1, {id}});

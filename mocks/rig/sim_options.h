@@ -92,7 +92,9 @@ struct Step1Options {
   bool identification_frames = true;  // one frame per beam alone at the first pose
   // After each pose's frame, one with every beam blocked (beams: []): the background under the
   // dots for their fit (docs/solver.md, "Dots"). Not at a pose that has identification frames,
-  // whose single-beam frames already show each dot's pixels dot-free.
+  // whose single-beam frames already show each dot's pixels dot-free. A pose whose dots would
+  // lie closer than 20 px in one image gets one frame per beam instead of the all-beams frame
+  // (their blobs merge), and its background frame even at the identification pose.
   bool background_frames = true;
 };
 

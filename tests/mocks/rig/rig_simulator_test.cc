@@ -191,6 +191,45 @@ TEST_F(RigTest, DefaultConfigIsSound) {
   }
 }
 
+// At a small spanning angle the nearest sliding pose brings the dots of two beams within a few
+// pixels (9 px apart merged into one blob and lost two frames): there the plan takes one frame
+// per beam instead of the all-beams frame (and keeps its background frame: close dots reach
+// into each other's fit windows), and no frame shows two dots closer than 20 px.
+TEST(RigPlanTest, CloseStep1DotsAreTakenOneBeamAtATime) {
+  SimOptions o;
+  o.beams.spanning_angle_deg = 18.0;
+  const RigSimulator sim(o);
+  for (const auto& w : sim.warnings()) ADD_FAILURE() << w;
+  std::map<int, std::vector<std::vector<int>>> frames_of_pose;
+  double closest = 1e9;
+  for (const auto& f : sim.step1_frames()) {
+    frames_of_pose[f.pose].push_back(f.beams);
+    const Scene scene = sim.FrameScene(f);
+    for (size_t a = 0; a < scene.labels.size(); ++a)
+      for (size_t b = a + 1; b < scene.labels.size(); ++b)
+        closest = std::min(closest, (scene.labels[a].pixel - scene.labels[b].pixel).norm());
+  }
+  EXPECT_GE(closest, 20.0);
+  int single_beam_poses = 0;
+  for (const auto& [pose, beams] : frames_of_pose) {
+    if (pose == o.step1.poses - 1) continue;  // identification frames
+    if (beams == std::vector<std::vector<int>>{{1}, {2}, {3}, {}})
+      ++single_beam_poses;
+    else
+      EXPECT_EQ(beams, (std::vector<std::vector<int>>{{1, 2, 3}, {}})) << "pose " << pose;
+  }
+  EXPECT_GE(single_beam_poses, 1);
+  // With all beams at once, that pose's dots would be closer than 20 px.
+  bool close = false;
+  for (int l = 0; l < o.step1.poses; ++l) {
+    const Scene scene = sim.Step1Scene(l, {1, 2, 3});
+    for (size_t a = 0; a < scene.labels.size(); ++a)
+      for (size_t b = a + 1; b < scene.labels.size(); ++b)
+        close |= (scene.labels[a].pixel - scene.labels[b].pixel).norm() < 20.0;
+  }
+  EXPECT_TRUE(close);
+}
+
 TEST_F(RigTest, MirrorFrameTruthFollowsConventions) {
   const SimTruth t = MakeTruth(*sim_);
   // Neutral plane: normal n_M0 through X_O; pose round trips.
