@@ -380,6 +380,13 @@ void RigSimulator::BuildFrames() {
   if (s1.identification_frames) {
     for (int id : all_beams) step1_.push_back({file("step1", step1_.size()), s1.poses - 1, {id}});
   }
+  if (s1.exposures > 1) {  // each frame K times in a row
+    std::vector<dataset::Step1Frame> repeated;
+    for (const auto& f : step1_)
+      for (int k = 0; k < s1.exposures; ++k)
+        repeated.push_back({file("step1", repeated.size()), f.pose, f.beams});
+    step1_ = std::move(repeated);
+  }
 
   // Triggers.
   const std::vector<double> times = SimpleTriggerTimes(*this);

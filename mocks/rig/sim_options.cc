@@ -87,6 +87,7 @@ void VisitAll(V& v, SimOptions& o) {
     v.Field("tilt_deg", s.tilt_deg);
     v.Field("identification_frames", s.identification_frames);
     v.Field("background_frames", s.background_frames);
+    v.Field("exposures", s.exposures);
   });
   v.Group("step2", [&] {
     auto& s = o.step2;
@@ -334,6 +335,8 @@ std::string SimOptions::Validate() const {
   if (!(camera.fx > 0 && camera.fy > 0))
     return Bad("camera.fx/fy", std::min(camera.fx, camera.fy), "> 0");
   if (step1.poses < 2) return Bad("step1.poses", step1.poses, ">= 2");
+  if (step1.exposures < 1 || step1.exposures > 16)
+    return Bad("step1.exposures", step1.exposures, "in [1, 16]");
   if (!(step1.nearest_mm > 0 && step1.farthest_mm > step1.nearest_mm))
     return Bad("step1.farthest_mm", step1.farthest_mm, "> step1.nearest_mm > 0");
   if (step2.neutral_frames < 1) return Bad("step2.neutral_frames", step2.neutral_frames, ">= 1");

@@ -96,6 +96,10 @@ struct Step1Options {
   // lie closer than 20 px in one image gets one frame per beam instead of the all-beams frame
   // (their blobs merge), and its background frame even at the identification pose.
   bool background_frames = true;
+  // Every step 1 frame is taken this many times in a row (same pose, same beams): the solver
+  // averages repeated exposures, which lowers the noise of the sliding-plane dots that alone
+  // carry the held-out beam (docs/solver.md, "Table I").
+  int exposures = 3;
 };
 
 struct Step2Options {

@@ -14,6 +14,7 @@
 #include <set>
 #include <sstream>
 #include <thread>
+#include <tuple>
 
 #include "processing/geometry/mirror_frame.h"
 #include "processing/solver/home_frame.h"
@@ -423,14 +424,109 @@ void RefineDotsOnBackgrounds(const std::vector<std::vector<size_t>>& groups,
   }
 }
 
+// Repeated exposures (PipelineOptions::average_exposures): `members[file]` lists the frames
+// averaged into the kept frame `file` (itself first).
+struct Exposures {
+  std::map<std::string, std::vector<std::string>> members;
+  dataset::Recording rec;  // one frame per scene (the first exposure's entry)
+};
+
+Exposures CollapseExposures(const dataset::Recording& in) {
+  Exposures e;
+  dataset::Recording& r = e.rec;
+  r.format = in.format;
+  r.camera = in.camera;
+  r.world_board = in.world_board;
+  r.sliding_board = in.sliding_board;
+  r.beams = in.beams;
+  r.drive = in.drive;
+  r.clock_frequency_hz = in.clock_frequency_hz;
+  r.triggers = in.triggers;
+  auto sorted = [](std::vector<int> v) {
+    std::sort(v.begin(), v.end());
+    return v;
+  };
+  std::map<std::pair<int, std::vector<int>>, size_t> step1_scene;
+  for (const auto& f : in.step1) {
+    const auto [it, added] = step1_scene.emplace(std::make_pair(f.pose, sorted(f.beams)), r.step1.size());
+    if (added) r.step1.push_back(f);
+    e.members[r.step1[it->second].file].push_back(f.file);
+  }
+  std::map<std::tuple<int, std::vector<int>, std::vector<int>>, size_t> step2_scene;
+  for (const auto& f : in.step2) {
+    const auto key = std::make_tuple(static_cast<int>(f.kind), sorted(f.triggers), sorted(f.beams));
+    const auto [it, added] = step2_scene.emplace(key, r.step2.size());
+    if (added) r.step2.push_back(f);
+    e.members[r.step2[it->second].file].push_back(f.file);
+  }
+  return e;
+}
+
+// The pixel mean of `files` (8-bit input: 16-bit output scaled by 257, so that full scale stays
+// full scale and a pixel saturated in every exposure reads as saturated; 16-bit: 16-bit).
+cv::Mat AverageExposures(const std::vector<std::string>& files, const ImageLoader& load) {
+  cv::Mat sum, first;
+  for (const auto& f : files) {
+    const cv::Mat img = load(f);
+    if (img.empty()) throw SolveError(f + ": cannot read the image");
+    if (first.empty()) {
+      first = img;
+      sum = cv::Mat::zeros(img.size(), CV_MAKETYPE(CV_32F, img.channels()));
+    } else if (img.size() != first.size() || img.type() != first.type()) {
+      throw SolveError(f + ": an exposure of the same scene as " + files[0] +
+                       " but its size or pixel format differs");
+    }
+    cv::Mat fl;
+    img.convertTo(fl, CV_32F);
+    sum += fl;
+  }
+  const double k = static_cast<double>(files.size());
+  cv::Mat out;
+  sum.convertTo(out, CV_MAKETYPE(CV_16U, first.channels()),
+                first.depth() == CV_8U ? 257.0 / k : 1.0 / k);
+  return out;
+}
+
 }  // namespace
 
-SolveOutput SolveRecording(const dataset::Recording& rec, const ImageLoader& load,
+SolveOutput SolveRecording(const dataset::Recording& input, const ImageLoader& input_load,
                            const PipelineOptions& o) {
   if (const std::string e = o.Validate(); !e.empty()) throw SolveError("PipelineOptions: " + e);
-  if (const std::string e = rec.camera.Validate(); !e.empty())
+  if (const std::string e = input.camera.Validate(); !e.empty())
     throw SolveError("camera.yaml: " + e);
   SolveOutput out;
+  // Repeated exposures of a scene become one averaged frame.
+  std::optional<Exposures> exposures;
+  if (o.average_exposures) {
+    exposures = CollapseExposures(input);
+    size_t averaged = 0, scenes = 0;
+    for (const auto& [file, m] : exposures->members)
+      if (m.size() > 1) {
+        averaged += m.size();
+        ++scenes;
+      }
+    if (scenes == 0)
+      exposures.reset();
+    else
+      out.notes.push_back("exposures: " + std::to_string(averaged) + " frames are repeated " +
+                          "exposures of " + std::to_string(scenes) +
+                          " scene(s); each scene's exposures were averaged and measured as one "
+                          "image (named by its first frame)");
+  }
+  const dataset::Recording& rec = exposures ? exposures->rec : input;
+  // With averaged scenes every image is handed on as 16-bit (8-bit scaled by 257), so that the
+  // images whose backgrounds are pooled (RefineDotsOnBackgrounds) share one scale.
+  const ImageLoader load = [&](const std::string& file) -> cv::Mat {
+    if (!exposures) return input_load(file);
+    const auto it = exposures->members.find(file);
+    if (it != exposures->members.end() && it->second.size() > 1)
+      return AverageExposures(it->second, input_load);
+    cv::Mat img = input_load(file);
+    if (img.depth() != CV_8U) return img;
+    cv::Mat wide;
+    img.convertTo(wide, CV_MAKETYPE(CV_16U, img.channels()), 257.0);
+    return wide;
+  };
   // Errors carry the frames dropped so far: they usually explain the failure.
   auto fail = [&](const std::string& what) {
     std::string msg = what;

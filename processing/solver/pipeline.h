@@ -47,6 +47,12 @@ struct PipelineOptions {
   int ransac_iterations = 3000;
   double ransac_inlier_deg = 0.4;
   uint64_t seed = 1;
+  // Repeated exposures of one static scene (step 1 frames with the same pose and beams; step 2
+  // frames with the same kind, triggers and beams) are averaged pixel by pixel and measured as
+  // one image: their noise falls by sqrt(K) while the covariance stays that of one measurement
+  // (measuring them apart would count the shared background frame's noise K times). Off: each
+  // frame is measured on its own.
+  bool average_exposures = true;
   // Images are measured (boards, dots) this many at a time, each on its own thread with
   // OpenCV's own parallel loops off for the duration of the solve (they made the results depend
   // on the CPU count and the machine's load). The results do not depend on this number.

@@ -113,6 +113,19 @@ std::string DescribeStep1Frame(const dataset::Recording& plan, size_t index,
   if (f.pose >= 0 && static_cast<size_t>(f.pose) < pose_hints.size() && !pose_hints[f.pose].empty())
     where += " (" + pose_hints[f.pose] + ")";
   const bool same_pose = index > 0 && plan.step1[index - 1].pose == f.pose;
+  auto sorted = [](std::vector<int> v) {
+    std::sort(v.begin(), v.end());
+    return v;
+  };
+  if (same_pose && sorted(plan.step1[index - 1].beams) == sorted(f.beams)) {
+    items = {"MSM not mounted.", "Another exposure of the same scene: change nothing (plate at " +
+                                      where + ", " + BeamsLine(plan, f.beams) +
+                                      " The solver averages repeated exposures.)"};
+    return Header(number, total,
+                  "Step 1, frame " + std::to_string(index + 1) + " of " +
+                      std::to_string(plan.step1.size()) + " (" + f.file + ")") +
+           Numbered(items);
+  }
   items.push_back(same_pose    ? "Leave the sliding plate at " + where + "."
                   : index == 0 ? "Mount the sliding plate at " + where + "."
                                : "Move the sliding plate to " + where + ".");

@@ -159,15 +159,20 @@ RigSimulator* RigTest::sim_ = nullptr;
 TEST_F(RigTest, DefaultConfigIsSound) {
   for (const auto& w : sim_->warnings()) ADD_FAILURE() << w;
   EXPECT_GE(sim_->triggers().size(), 40u);
-  // 7 poses, a background frame (no beam) at the 6 without identification frames, 3 of those.
-  EXPECT_EQ(sim_->step1_frames().size(), 7u + 6u + 3u);
+  // 7 poses, a background frame (no beam) at the 6 without identification frames, 3 of those;
+  // each taken 3 times in a row (step1.exposures).
+  EXPECT_EQ(sim_->step1_frames().size(), 3u * (7u + 6u + 3u));
   int background = 0;
-  for (const auto& f : sim_->step1_frames()) {
+  for (size_t i = 0; i < sim_->step1_frames().size(); ++i) {
+    const auto& f = sim_->step1_frames()[i];
+    const auto& first = sim_->step1_frames()[i - i % 3];
+    EXPECT_EQ(f.pose, first.pose) << f.file;
+    EXPECT_EQ(f.beams, first.beams) << f.file;
     if (!f.beams.empty()) continue;
     ++background;
     EXPECT_LT(f.pose, 6) << f.file;
   }
-  EXPECT_EQ(background, 6);
+  EXPECT_EQ(background, 3 * 6);
   EXPECT_NEAR(sim_->SpanningAngleDeg(sim_->MirrorPlaneInWorld(0, DriveMode::kOff)), 46.0, 1e-6);
   // Every trigger appears in at least one scan frame; kinds present.
   std::map<int, int> seen;
@@ -198,6 +203,7 @@ TEST_F(RigTest, DefaultConfigIsSound) {
 TEST(RigPlanTest, CloseStep1DotsAreTakenOneBeamAtATime) {
   SimOptions o;
   o.beams.spanning_angle_deg = 18.0;
+  o.step1.exposures = 1;
   const RigSimulator sim(o);
   for (const auto& w : sim.warnings()) ADD_FAILURE() << w;
   std::map<int, std::vector<std::vector<int>>> frames_of_pose;

@@ -257,6 +257,21 @@ TEST(ConsoleOperator, DescriptionsRejectIndicesOutsideThePlan) {
   EXPECT_THROW(DescribeStep2Frame(plan, 3, 1, 1), std::out_of_range);
 }
 
+// A frame repeating the previous one (same pose, same beams) is another exposure: the block
+// says to change nothing and keeps the beams line; a change of beams at the same pose does not.
+TEST(ConsoleOperator, RepeatedExposureSaysChangeNothing) {
+  dataset::Recording plan = SmallPlan();
+  plan.step1.insert(plan.step1.begin() + 1, {"step1/0000b.png", 0, {3, 2, 1}});
+  const std::string again = DescribeStep1Frame(plan, 1, {}, 2, 9);
+  EXPECT_NE(again.find("Another exposure of the same scene: change nothing"), std::string::npos)
+      << again;
+  EXPECT_NE(again.find("Unblock beams 3, 2 and 1 (all beams)."), std::string::npos) << again;
+  EXPECT_EQ(again.find("Move the sliding plate"), std::string::npos) << again;
+  const std::string other = DescribeStep1Frame(plan, 3, {}, 4, 9);  // pose 1, beam 2 alone
+  EXPECT_EQ(other.find("Another exposure"), std::string::npos) << other;
+  EXPECT_NE(other.find("Leave the sliding plate at pose 2"), std::string::npos) << other;
+}
+
 TEST(LiveFigures, OneLinePerDecisionWithFiguresReasonAndTotals) {
   GateResult g;
   g.accepted = false;
