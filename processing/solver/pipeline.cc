@@ -165,6 +165,9 @@ struct Group {
   std::map<int, int> dot_of_beam;  // beam index -> dot index in the frame
   Plane plane;
   int slot = 0;  // index into the frame's trigger list
+  // Built by elimination from the estimate beams' dots alone (the frame's other triggers are
+  // complete, its held-out dots missing); kept only if the drive-phase model agrees.
+  bool recovered = false;
 };
 
 }  // namespace
@@ -187,11 +190,16 @@ std::string PipelineOptions::Validate() const {
   return s.str();
 }
 
+Eigen::Vector2d TriggerModel::Predict(double t_s, bool slow_on) const {
+  return coef.transpose() *
+         Features(t_s, slow_on, 2 * M_PI * fast_hz, 2 * M_PI * slow_hz, harmonics);
+}
+
 std::vector<int> AssignTriggers(const std::vector<TriggerFrame>& frames,
                                 const std::vector<TriggerGroup>& groups,
                                 const std::vector<Eigen::Vector2d>& neutral_angles_deg,
                                 double fast_hz, double slow_hz, const PipelineOptions& o,
-                                std::string* note) {
+                                std::string* note, TriggerModel* model) {
   const double wf = 2 * M_PI * fast_hz, ws = 2 * M_PI * slow_hz;
   std::vector<std::vector<int>> of_frame(frames.size());
   for (size_t g = 0; g < groups.size(); ++g)
@@ -276,6 +284,7 @@ std::vector<int> AssignTriggers(const std::vector<TriggerFrame>& frames,
     fit(labelled, harmonics, &coef);
     assign(coef, harmonics, &slot);
   }
+  if (model) *model = TriggerModel{coef, harmonics, fast_hz, slow_hz};
   if (note) {
     double sum2 = 0;
     for (size_t g = 0; g < groups.size(); ++g) {
@@ -878,7 +887,7 @@ SolveOutput SolveRecording(const dataset::Recording& input, const ImageLoader& i
       s.dots_in_world.push_back(p.value_or(Eigen::Vector3d::Zero()));
       s.near_edge.push_back(p && !d.on_background && near_edge(d, *p));
     }
-  std::vector<Group> groups;
+  std::vector<Group> groups, recovered;
   for (size_t fi = 0; fi < s2.size(); ++fi) {
     const S2& s = s2[fi];
     std::vector<int> e, v;
@@ -954,7 +963,46 @@ SolveOutput SolveRecording(const dataset::Recording& input, const ImageLoader& i
       for (const auto& [b, d] : c.dot_of_beam) used[d] = true;
       accepted.push_back(Group{static_cast<int>(fi), c.dot_of_beam, c.plane, 0});
     }
-    if (s.partial && !accepted.empty()) {
+    // One trigger short, and exactly the estimate beams' number of dots left over: those dots
+    // are that trigger's (elimination) and the held-out ones are missing. Its plane comes from
+    // them alone; with two estimate beams a wrong beam pairing can fit as well, so the group is
+    // tentative until the drive-phase model has checked its angles (below).
+    if (s.partial && s.frame->kind != Step2Kind::kNeutral && accepted.size() + 1 == want &&
+        !v.empty()) {
+      std::vector<int> left;
+      for (int d = 0; d < n; ++d)
+        if (!used[d]) left.push_back(d);
+      if (left.size() == e.size()) {
+        std::optional<Candidate> best;
+        std::sort(left.begin(), left.end());
+        do {
+          std::vector<Line> lines;
+          std::vector<Eigen::Vector3d> xs;
+          for (size_t i = 0; i < e.size(); ++i) {
+            lines.push_back(beams0[e[i]]);
+            xs.push_back(s.dots_in_world[left[i]]);
+          }
+          const auto plane = InitialMirrorPlane(lines, xs);
+          if (!plane) continue;
+          Candidate c{0, {}, *plane};
+          bool ok = true;
+          for (size_t i = 0; i < e.size() && ok; ++i) {
+            const auto px = PredictReflectedDot(rec.camera, *c2_from_world, beams0[e[i]], *plane);
+            ok = px.has_value();
+            if (ok) c.score += (*px - s.dots[left[i]].px).norm() / static_cast<double>(e.size());
+            c.dot_of_beam[e[i]] = left[i];
+          }
+          if (ok && (!best || c.score < best->score)) best = c;
+        } while (std::next_permutation(left.begin(), left.end()));
+        if (best && best->score <= max_score) {
+          Group g{static_cast<int>(fi), best->dot_of_beam, best->plane, 0};
+          g.recovered = true;
+          recovered.push_back(std::move(g));
+        }
+      }
+    }
+    const bool tentative = !recovered.empty() && recovered.back().frame == static_cast<int>(fi);
+    if (s.partial && (!accepted.empty() || tentative)) {
       out.notes.push_back(s.frame->file + ": " + std::to_string(n) + " of " +
                           std::to_string(want * s.frame->beams.size()) + " laser dots found; " +
                           std::to_string(accepted.size()) + " of " + std::to_string(want) +
@@ -1015,11 +1063,40 @@ SolveOutput SolveRecording(const dataset::Recording& input, const ImageLoader& i
     for (const auto& p : neutral_planes) neutral_angles.push_back(angles_of(p));
     if (!tgroups.empty()) {
       std::string note;
+      TriggerModel model;
       const auto slots =
           AssignTriggers(tframes, tgroups, neutral_angles, rec.drive.fast.frequency_hz,
-                         rec.drive.slow.frequency_hz, o, &note);
+                         rec.drive.slow.frequency_hz, o, &note, &model);
       for (size_t k = 0; k < multi_index.size(); ++k) groups[multi_index[k]].slot = slots[k];
       out.notes.push_back(note);
+      // Tentative groups: the one slot their frame's complete groups left free, if the model
+      // predicts their angles there within a quarter of the RANSAC inlier threshold (wrong beam
+      // pairings are degrees off; the model's RMS is ~0.001 deg on the simulator).
+      for (auto& g : recovered) {
+        const auto* fr = s2[g.frame].frame;
+        std::vector<bool> taken(fr->triggers.size(), false);
+        for (const auto& other : groups)
+          if (other.frame == g.frame) taken[other.slot] = true;
+        const int free_slot =
+            static_cast<int>(std::find(taken.begin(), taken.end(), false) - taken.begin());
+        if (free_slot >= static_cast<int>(taken.size())) continue;
+        const double off_deg =
+            (angles_of(g.plane) -
+             model.Predict(tframes[g.frame].t_s[free_slot], tframes[g.frame].slow_on))
+                .norm();
+        std::ostringstream msg;
+        msg << fr->file << ": trigger " << fr->triggers[free_slot] << " (its held-out dot "
+            << "missing) from the estimate beams' dots alone, " << off_deg
+            << " deg from the drive-phase model: ";
+        if (off_deg <= 0.25 * o.ransac_inlier_deg) {
+          g.slot = free_slot;
+          groups.push_back(g);
+          msg << "kept";
+        } else {
+          msg << "not kept (> " << 0.25 * o.ransac_inlier_deg << " deg)";
+        }
+        out.notes.push_back(msg.str());
+      }
     }
   }
   // Planes: one per (kind, j); neutral frames share one plane.

@@ -117,10 +117,17 @@ struct TriggerFrame {
   std::vector<double> t_s;  // trigger times of the frame
   bool slow_on = true;      // false for fast_only
 };
+// The fitted drive-phase model: predicted angles (deg) at trigger time t.
+struct TriggerModel {
+  Eigen::MatrixXd coef;  // features x 2; empty when no multi-trigger frame was assigned
+  bool harmonics = false;
+  double fast_hz = 0, slow_hz = 0;
+  Eigen::Vector2d Predict(double t_s, bool slow_on) const;
+};
 std::vector<int> AssignTriggers(const std::vector<TriggerFrame>& frames,
                                 const std::vector<TriggerGroup>& groups,
                                 const std::vector<Eigen::Vector2d>& neutral_angles_deg,
                                 double fast_hz, double slow_hz, const PipelineOptions& options,
-                                std::string* note);
+                                std::string* note, TriggerModel* model = nullptr);
 
 }  // namespace msmcal::solver
