@@ -907,27 +907,35 @@ SolveOutput SolveRecording(const dataset::Recording& input, const ImageLoader& i
       std::map<int, int> dot_of_beam;
       Plane plane;
     };
+    // The plane through the estimate beams' dots `dots` (dots[i] for beam e[i]); score = sum of
+    // their pixel distances to its predictions.
+    auto plane_of = [&](const std::vector<int>& dots) -> std::optional<Candidate> {
+      std::vector<Line> lines;
+      std::vector<Eigen::Vector3d> xs;
+      for (size_t i = 0; i < e.size(); ++i) {
+        lines.push_back(beams0[e[i]]);
+        xs.push_back(s.dots_in_world[dots[i]]);
+      }
+      const auto plane = InitialMirrorPlane(lines, xs);
+      if (!plane) return std::nullopt;
+      Candidate c{0, {}, *plane};
+      for (size_t i = 0; i < e.size(); ++i) {
+        const auto px = PredictReflectedDot(rec.camera, *c2_from_world, beams0[e[i]], *plane);
+        if (!px) return std::nullopt;
+        c.score += (*px - s.dots[dots[i]].px).norm();
+        c.dot_of_beam[e[i]] = dots[i];
+      }
+      return c;
+    };
     std::vector<Candidate> cands;
     std::vector<int> tuple(e.size(), 0);
     std::function<void(size_t)> rec_tuple = [&](size_t k) {
       if (k == e.size()) {
-        std::vector<Line> lines;
-        std::vector<Eigen::Vector3d> xs;
-        for (size_t i = 0; i < e.size(); ++i) {
-          lines.push_back(beams0[e[i]]);
-          xs.push_back(s.dots_in_world[tuple[i]]);
-        }
-        const auto plane = InitialMirrorPlane(lines, xs);
-        if (!plane) return;
-        Candidate c{0, {}, *plane};
-        for (size_t i = 0; i < e.size(); ++i) {
-          const auto px = PredictReflectedDot(rec.camera, *c2_from_world, beams0[e[i]], *plane);
-          if (!px) return;
-          c.score += (*px - s.dots[tuple[i]].px).norm();
-          c.dot_of_beam[e[i]] = tuple[i];
-        }
+        auto found = plane_of(tuple);
+        if (!found) return;
+        Candidate& c = *found;
         for (int b : v) {
-          const auto px = PredictReflectedDot(rec.camera, *c2_from_world, beams0[b], *plane);
+          const auto px = PredictReflectedDot(rec.camera, *c2_from_world, beams0[b], c.plane);
           if (!px) return;
           int best = -1;
           for (int d = 0; d < n; ++d) {
@@ -976,23 +984,10 @@ SolveOutput SolveRecording(const dataset::Recording& input, const ImageLoader& i
         std::optional<Candidate> best;
         std::sort(left.begin(), left.end());
         do {
-          std::vector<Line> lines;
-          std::vector<Eigen::Vector3d> xs;
-          for (size_t i = 0; i < e.size(); ++i) {
-            lines.push_back(beams0[e[i]]);
-            xs.push_back(s.dots_in_world[left[i]]);
-          }
-          const auto plane = InitialMirrorPlane(lines, xs);
-          if (!plane) continue;
-          Candidate c{0, {}, *plane};
-          bool ok = true;
-          for (size_t i = 0; i < e.size() && ok; ++i) {
-            const auto px = PredictReflectedDot(rec.camera, *c2_from_world, beams0[e[i]], *plane);
-            ok = px.has_value();
-            if (ok) c.score += (*px - s.dots[left[i]].px).norm() / static_cast<double>(e.size());
-            c.dot_of_beam[e[i]] = left[i];
-          }
-          if (ok && (!best || c.score < best->score)) best = c;
+          auto c = plane_of(left);
+          if (!c) continue;
+          c->score /= static_cast<double>(e.size());
+          if (!best || c->score < best->score) best = std::move(c);
         } while (std::next_permutation(left.begin(), left.end()));
         if (best && best->score <= max_score) {
           Group g{static_cast<int>(fi), best->dot_of_beam, best->plane, 0};
