@@ -244,6 +244,8 @@ void RunTable1(const Table1Args& args) {
       row.dropped = out.dropped.size();
       std::printf("%s done: spanning %.2f, baseline %.3f, proposed %.3f deg\n", row.name.c_str(),
                   row.spanning, row.base_rms, row.prop_rms);
+      for (const auto& d : out.dropped)
+        std::printf("  %s dropped %s: %s\n", row.name.c_str(), d.file.c_str(), d.reason.c_str());
       std::fflush(stdout);
       table.push_back(row);
     }
