@@ -129,8 +129,8 @@ std::vector<CornerSet> MergeRepeatedViews(const std::vector<CornerSet>& sets,
   for (size_t k = 0; k < sets.size(); ++k) {
     const CornerSet& cs = sets[k];
     size_t v = 0;
-    while (v < sum.size() && !(sum[v].view == cs.view && sum[v].pose == cs.pose &&
-                               sum[v].px.size() == cs.px.size()))
+    while (v < sum.size() &&
+           !(sum[v].view == cs.view && sum[v].pose == cs.pose && sum[v].px.size() == cs.px.size()))
       ++v;
     if (v == sum.size()) {
       sum.push_back(cs);
@@ -457,7 +457,8 @@ Exposures CollapseExposures(const dataset::Recording& in) {
   };
   std::map<std::pair<int, std::vector<int>>, size_t> step1_scene;
   for (const auto& f : in.step1) {
-    const auto [it, added] = step1_scene.emplace(std::make_pair(f.pose, sorted(f.beams)), r.step1.size());
+    const auto [it, added] =
+        step1_scene.emplace(std::make_pair(f.pose, sorted(f.beams)), r.step1.size());
     if (added) r.step1.push_back(f);
     e.members[r.step1[it->second].file].push_back(f.file);
   }
@@ -1075,10 +1076,9 @@ SolveOutput SolveRecording(const dataset::Recording& input, const ImageLoader& i
         const int free_slot =
             static_cast<int>(std::find(taken.begin(), taken.end(), false) - taken.begin());
         if (free_slot >= static_cast<int>(taken.size())) continue;
-        const double off_deg =
-            (angles_of(g.plane) -
-             model.Predict(tframes[g.frame].t_s[free_slot], tframes[g.frame].slow_on))
-                .norm();
+        const double off_deg = (angles_of(g.plane) - model.Predict(tframes[g.frame].t_s[free_slot],
+                                                                   tframes[g.frame].slow_on))
+                                   .norm();
         std::ostringstream msg;
         msg << fr->file << ": trigger " << fr->triggers[free_slot] << " (its held-out dot "
             << "missing) from the estimate beams' dots alone, " << off_deg

@@ -119,8 +119,8 @@ std::string DescribeStep1Frame(const dataset::Recording& plan, size_t index,
   };
   if (same_pose && sorted(plan.step1[index - 1].beams) == sorted(f.beams)) {
     items = {"MSM not mounted.", "Another exposure of the same scene: change nothing (plate at " +
-                                      where + ", " + BeamsLine(plan, f.beams) +
-                                      " The solver averages repeated exposures.)"};
+                                     where + ", " + BeamsLine(plan, f.beams) +
+                                     " The solver averages repeated exposures.)"};
     return Header(number, total,
                   "Step 1, frame " + std::to_string(index + 1) + " of " +
                       std::to_string(plan.step1.size()) + " (" + f.file + ")") +

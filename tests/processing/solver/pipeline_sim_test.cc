@@ -44,7 +44,8 @@ SimRun RunSimulation(const sim::SimOptions& options, const PipelineOptions& pipe
     r.rec.step1.clear();
     for (int l = 0; l < options.step1.poses; ++l)
       r.rec.step1.push_back({file(r.rec.step1.size()), l, all});
-    for (int id : all) r.rec.step1.push_back({file(r.rec.step1.size()), options.step1.poses - 1, {id}});
+    for (int id : all)
+      r.rec.step1.push_back({file(r.rec.step1.size()), options.step1.poses - 1, {id}});
   }
   const ImageLoader load = [&](const std::string& file) -> cv::Mat {
     for (size_t i = 0; i < r.rec.step1.size(); ++i)
@@ -182,8 +183,8 @@ TEST(PipelineSimTest, DropsStep1FrameWithInconsistentBeamLabels) {
   bool partial_noted = false, recovered_noted = false;
   for (const auto& n : r.out.notes) {
     partial_noted = partial_noted || n == partial;
-    recovered_noted = recovered_noted || (n.rfind(recovered, 0) == 0 &&
-                                          n.find(": kept") != std::string::npos);
+    recovered_noted =
+        recovered_noted || (n.rfind(recovered, 0) == 0 && n.find(": kept") != std::string::npos);
   }
   EXPECT_TRUE(partial_noted);
   EXPECT_TRUE(recovered_noted);
@@ -357,10 +358,11 @@ TEST(PipelineSimTest, HeldOutBeamErrorBudget) {
     ASSERT_TRUE(hit);
     const Eigen::Vector3d p_est = world_from_c1 * *hit;
     const Eigen::Vector3d p_pose_true = r.sim->c1_from_world().Inverse() * *hit;
-    std::printf("pose %zu: pose-only error %.4f mm (C1->W alone %.4f mm), pose translation error "
-                "%.4f mm\n",
-                l, (p_est - *p_true).norm(), (p_est - p_pose_true).norm(),
-                (est.c1_from_sliding[best].translation - c1_from_sliding_true.translation).norm());
+    std::printf(
+        "pose %zu: pose-only error %.4f mm (C1->W alone %.4f mm), pose translation error "
+        "%.4f mm\n",
+        l, (p_est - *p_true).norm(), (p_est - p_pose_true).norm(),
+        (est.c1_from_sliding[best].translation - c1_from_sliding_true.translation).norm());
     pose_only.push_back(p_est);
     truth_pts.push_back(*p_true);
     for (const auto& b : r.out.beams)
@@ -369,8 +371,8 @@ TEST(PipelineSimTest, HeldOutBeamErrorBudget) {
             est.c1_from_world, geometry::Line::FromPointDirection(b.p, b.v));
         const auto on = geometry::IntersectLinePlane(beam_c1, sliding_in_c1);
         const auto pred = r.sim->camera().Project(*on);
-        std::printf("   estimated beam's dot - true pixel: (%.4f, %.4f) px\n",
-                    (*pred - *px).x(), (*pred - *px).y());
+        std::printf("   estimated beam's dot - true pixel: (%.4f, %.4f) px\n", (*pred - *px).x(),
+                    (*pred - *px).y());
       }
   }
   const auto& truth = r.sim->beams_in_world()[held - 1];
@@ -388,9 +390,10 @@ TEST(PipelineSimTest, HeldOutBeamErrorBudget) {
     return std::acos(std::min(1.0, std::abs(v.dot(truth.v)))) * kRadToDeg;
   };
   const double pose_deg = line_deg(pose_line.v);
-  std::printf("held-out beam: estimated %.4f deg (predicted sigma per axis %.4f deg); line "
-              "through pose-only points %.4f deg; through true points %.5f deg\n",
-              est_deg, sd_deg, pose_deg, line_deg(truth_fit.v));
+  std::printf(
+      "held-out beam: estimated %.4f deg (predicted sigma per axis %.4f deg); line "
+      "through pose-only points %.4f deg; through true points %.5f deg\n",
+      est_deg, sd_deg, pose_deg, line_deg(truth_fit.v));
   EXPECT_LT(line_deg(truth_fit.v), 1e-6);
   EXPECT_LT(pose_deg, 0.003);
   EXPECT_LT(est_deg, 3.5 * sd_deg);  // 2 dof: chi2 > 12.25 has probability 0.2 %
@@ -412,9 +415,9 @@ TEST(PipelineErrorsTest, MismatchedExposureNamesTheFiles) {
     SolveRecording(rec, load);
     FAIL() << "expected SolveError";
   } catch (const SolveError& e) {
-    EXPECT_NE(std::string(e.what()).find(odd + ": an exposure of the same scene as " +
-                                         rec.step1[0].file),
-              std::string::npos)
+    EXPECT_NE(
+        std::string(e.what()).find(odd + ": an exposure of the same scene as " + rec.step1[0].file),
+        std::string::npos)
         << e.what();
   }
 }

@@ -26,8 +26,8 @@ struct CornerStats {
   }
   double Rms() const { return std::sqrt(e2 / (2.0 * n)); }
   void Print(const char* name) const {
-    std::printf("%s: %d corners, RMS %.4f px per axis, mean (%.4f, %.4f) px, worst %.4f px\n",
-                name, n, Rms(), sum.x() / n, sum.y() / n, worst);
+    std::printf("%s: %d corners, RMS %.4f px per axis, mean (%.4f, %.4f) px, worst %.4f px\n", name,
+                n, Rms(), sum.x() / n, sum.y() / n, worst);
   }
 };
 
