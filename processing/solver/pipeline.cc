@@ -443,14 +443,9 @@ struct Exposures {
 Exposures CollapseExposures(const dataset::Recording& in) {
   Exposures e;
   dataset::Recording& r = e.rec;
-  r.format = in.format;
-  r.camera = in.camera;
-  r.world_board = in.world_board;
-  r.sliding_board = in.sliding_board;
-  r.beams = in.beams;
-  r.drive = in.drive;
-  r.clock_frequency_hz = in.clock_frequency_hz;
-  r.triggers = in.triggers;
+  r = in;  // everything but the frame lists (the solver reads no Hall data; a copy is cheap)
+  r.step1.clear();
+  r.step2.clear();
   auto sorted = [](std::vector<int> v) {
     std::sort(v.begin(), v.end());
     return v;
