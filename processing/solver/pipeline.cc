@@ -120,7 +120,8 @@ std::vector<char> CornersClearOfDots(const vision::CheckerboardDetection& board,
 // not independent noise. Each view enters the MLE once, as the mean of its frames' corners, so
 // that the pose information is not counted K times (docs/solver.md, "Covariance honesty").
 // A corner is averaged over the frames where it is clear of laser dots (`clear[k][i]`); a
-// corner that no frame sees clear is left out of the view. `dropped` counts those.
+// corner that no frame sees clear is left out of the view, and a view left with fewer than 4
+// corners is left out whole. `dropped` counts the corners left out.
 std::vector<CornerSet> MergeRepeatedViews(const std::vector<CornerSet>& sets,
                                           const std::vector<std::vector<char>>& clear,
                                           int* dropped) {
@@ -155,7 +156,10 @@ std::vector<CornerSet> MergeRepeatedViews(const std::vector<CornerSet>& sets,
       m.points_in_board.push_back(sum[v].points_in_board[i]);
       m.px.push_back(sum[v].px[i] / count[v][i]);
     }
-    if (m.px.size() >= 4) out.push_back(std::move(m));
+    if (m.px.size() >= 4)
+      out.push_back(std::move(m));
+    else
+      *dropped += static_cast<int>(m.px.size());
   }
   return out;
 }
@@ -165,9 +169,6 @@ struct Group {
   std::map<int, int> dot_of_beam;  // beam index -> dot index in the frame
   Plane plane;
   int slot = 0;  // index into the frame's trigger list
-  // Built by elimination from the estimate beams' dots alone (the frame's other triggers are
-  // complete, its held-out dots missing); kept only if the drive-phase model agrees.
-  bool recovered = false;
 };
 
 }  // namespace
@@ -883,6 +884,9 @@ SolveOutput SolveRecording(const dataset::Recording& input, const ImageLoader& i
       s.dots_in_world.push_back(p.value_or(Eigen::Vector3d::Zero()));
       s.near_edge.push_back(p && !d.on_background && near_edge(d, *p));
     }
+  // recovered: groups built by elimination from the estimate beams' dots alone (the frame's
+  // other triggers complete, its held-out dots missing); kept only if the drive-phase model
+  // agrees (after the trigger assignment).
   std::vector<Group> groups, recovered;
   for (size_t fi = 0; fi < s2.size(); ++fi) {
     const S2& s = s2[fi];
@@ -985,11 +989,8 @@ SolveOutput SolveRecording(const dataset::Recording& input, const ImageLoader& i
           c->score /= static_cast<double>(e.size());
           if (!best || c->score < best->score) best = std::move(c);
         } while (std::next_permutation(left.begin(), left.end()));
-        if (best && best->score <= max_score) {
-          Group g{static_cast<int>(fi), best->dot_of_beam, best->plane, 0};
-          g.recovered = true;
-          recovered.push_back(std::move(g));
-        }
+        if (best && best->score <= max_score)
+          recovered.push_back(Group{static_cast<int>(fi), best->dot_of_beam, best->plane, 0});
       }
     }
     const bool tentative = !recovered.empty() && recovered.back().frame == static_cast<int>(fi);
@@ -1125,7 +1126,8 @@ SolveOutput SolveRecording(const dataset::Recording& input, const ImageLoader& i
     if (dropped > 0)
       out.notes.push_back("corners: " + std::to_string(dropped) +
                           " board corner(s) left out: a laser dot reached their refinement "
-                          "window in every frame of their view");
+                          "window in every frame of their view (or too few corners of the view "
+                          "were left)");
   }
   std::string err;
   const auto init = InitialEstimate(obs, &err);
