@@ -83,7 +83,7 @@ void RunPredict(const std::string& model_file, const std::string& in_csv, const 
   s << "mcu_time_us,t_s,alpha_deg,beta_deg,trans_mm\n";
   const double dt = loaded.model.delta_t_s;
   for (size_t i = 0; i < t.size(); ++i) {
-    s << readings[i].mcu_time_us << ',' << interchange::FormatDouble(t[i] - dt) << ','
+    s << interchange::FormatDouble(readings[i].mcu_time_us) << ',' << interchange::FormatDouble(t[i] - dt) << ','
       << interchange::FormatDouble(pose[i].x()) << ',' << interchange::FormatDouble(pose[i].y()) << ','
       << interchange::FormatDouble(pose[i].z()) << '\n';
   }

@@ -7,12 +7,15 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <sstream>
 
 #include "app/command_registry.h"
+#include "app/solve_options_io.h"
 #include "mocks/rig/rig_simulator.h"
+#include "processing/solver/diagnostics.h"
 #include "processing/solver/home_frame.h"
 #include "processing/solver/pipeline.h"
 #include "sessions/interchange/interchange_io.h"
@@ -24,9 +27,12 @@ namespace fs = std::filesystem;
 
 struct SolveArgs {
   std::string dir;
+  std::string explain;  // one image file as named in session.yaml
+  std::string config;   // solve.yaml
   int threads = 2;
   int ceres_threads = 1;
   uint64_t seed = 1;
+  bool threads_given = false, seed_given = false;
 };
 
 nlohmann::json SummaryJson(const solver::SolveOutput& out, double solve_time_s) {
@@ -87,20 +93,157 @@ solver::ImageLoader FolderLoader(const fs::path& dir) {
   };
 }
 
+// `msmcal solve DIR --explain FILE`: every board attempt and every candidate blob of one image,
+// with the reason it was kept or refused.
+void RunExplain(const SolveArgs& args, const solver::PipelineOptions& options) {
+  const fs::path dir(args.dir);
+  const dataset::Recording rec = interchange::ReadRecordingForSolve(dir);
+  const vision::BoardSize world{rec.world_board.cols, rec.world_board.rows};
+  const vision::BoardSize sliding{rec.sliding_board.cols, rec.sliding_board.rows};
+  std::vector<vision::BoardSize> asks;
+  std::vector<std::string> names;
+  std::string what;
+  for (const auto& f : rec.step1)
+    if (f.file == args.explain) {
+      asks = {world, sliding};
+      names = {"world", "sliding"};
+      what = "step 1, sliding pose " + std::to_string(f.pose) + ", " +
+             std::to_string(f.beams.size()) + " beam(s) unblocked: expects " +
+             std::to_string(f.beams.size()) + " dot(s) on the sliding plate";
+    }
+  for (const auto& f : rec.step2)
+    if (f.file == args.explain) {
+      asks = {world};
+      names = {"world"};
+      const size_t triggers = f.kind == dataset::Step2Kind::kNeutral ? 1 : f.triggers.size();
+      what = std::string("step 2, ") + dataset::ToString(f.kind) + ", " + std::to_string(triggers) +
+             " trigger(s) x " + std::to_string(f.beams.size()) + " beam(s): expects " +
+             std::to_string(triggers * f.beams.size()) + " dot(s) on the world plane";
+    }
+  if (asks.empty())
+    throw std::runtime_error(args.explain + ": not a frame of " + (dir / "session.yaml").string() +
+                             " (name it as session.yaml does, e.g. step1/0004.png)");
+  const cv::Mat img = cv::imread((dir / args.explain).string(), cv::IMREAD_UNCHANGED);
+  if (img.empty())
+    throw std::runtime_error((dir / args.explain).string() + ": cannot read the image");
+  double lo = 0, hi = 0;
+  cv::minMaxLoc(img.reshape(1), &lo, &hi);
+  std::printf("%s: %dx%d, %d channel(s), %d-bit, levels %.0f..%.0f\n%s\n", args.explain.c_str(),
+              img.cols, img.rows, img.channels(), img.depth() == CV_16U ? 16 : 8, lo, hi,
+              what.c_str());
+  const auto t0 = std::chrono::steady_clock::now();
+  const solver::ImageMeasurement m = solver::MeasureImage(img, asks, options.dots, options.boards);
+  const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  std::printf("measured in %.2f s\n", secs);
+  for (size_t b = 0; b < asks.size(); ++b) {
+    std::printf(
+        "%s board (%dx%d inner corners): %s\n", names[b].c_str(), asks[b].cols, asks[b].rows,
+        m.boards[b] ? (std::string("found by ") + vision::ToString(m.boards[b]->method) +
+                       ", squares " + std::to_string(m.boards[b]->square_px).substr(0, 5) + " px")
+                          .c_str()
+                    : "NOT FOUND");
+    for (const auto& a : m.board_attempts[b])
+      std::printf("  %-12s scale %.3f: %s%s%s\n", vision::ToString(a.method), a.scale,
+                  !a.found     ? "no grid"
+                  : a.accepted ? "accepted"
+                               : "refused",
+                  a.note.empty() ? "" : ": ", a.note.c_str());
+  }
+  std::vector<vision::DotCandidate> cands;
+  vision::DotRejections rej;
+  vision::DetectDots(img, options.dots, &rej, &cands);
+  std::printf(
+      "dot candidates: %zu blobs above the threshold (dots.threshold_fraction %.3g), %zu "
+      "kept\n",
+      cands.size(), options.dots.threshold_fraction,
+      static_cast<size_t>(
+          std::count_if(cands.begin(), cands.end(), [](const auto& c) { return c.kept; })));
+  size_t shown = 0;
+  std::map<std::string, int> hidden;
+  for (const auto& c : cands) {
+    if (!c.kept && shown >= 60) {
+      ++hidden[c.reason.substr(0, c.reason.find(':'))];
+      continue;
+    }
+    ++shown;
+    std::printf("  (%7.1f, %7.1f) %4d px peak %6.0f elong %.2f sat %3d: %s\n", c.centroid_px.x(),
+                c.centroid_px.y(), c.num_pixels, c.peak, c.elongation, c.saturated_pixels,
+                c.reason.c_str());
+  }
+  for (const auto& [why, n] : hidden)
+    std::printf("  ... and %d more refused: %s\n", n, why.c_str());
+}
+
+// results/detections.csv, results/diagnostics/*.jpg (dropped and partly used frames) and the
+// drop summary with its hint on stderr.
+void WriteDiagnostics(const fs::path& dir, const std::vector<solver::FrameDetection>& detections) {
+  const fs::path results = dir / "results";
+  interchange::WriteFileAtomically(results / "detections.csv",
+                                   solver::FormatDetectionsCsv(detections));
+  const fs::path diag = results / "diagnostics";
+  std::error_code ec;
+  fs::remove_all(diag, ec);
+  int written = 0;
+  for (const auto& d : detections) {
+    if (d.used && !d.partial) continue;
+    const cv::Mat img = cv::imread((dir / d.file).string(), cv::IMREAD_UNCHANGED);
+    if (img.empty()) continue;
+    fs::create_directories(diag);
+    std::string name = d.file;
+    for (char& c : name)
+      if (c == '/' || c == '\\') c = '_';
+    name = name.substr(0, name.rfind('.')) + ".jpg";
+    if (cv::imwrite((diag / name).string(), solver::AnnotateFrame(img, d),
+                    {cv::IMWRITE_JPEG_QUALITY, 85}))
+      ++written;
+  }
+  const solver::DropSummary sum = solver::SummariseDrops(detections);
+  if (sum.dropped > 0 || sum.partial > 0) {
+    std::fprintf(stderr, "frames: %d of %d dropped, %d used in part", sum.dropped, sum.frames,
+                 sum.partial);
+    if (sum.dropped > 0)
+      std::fprintf(stderr, "; most common reason (%d): %s\nhint: %s", sum.common_count,
+                   sum.common_reason.c_str(), sum.hint.c_str());
+    std::fprintf(stderr, "\nper-frame figures: %s; annotated frames (%d): %s\n",
+                 (results / "detections.csv").c_str(), written, diag.c_str());
+  }
+}
+
+solver::PipelineOptions OptionsOf(const SolveArgs& args) {
+  solver::PipelineOptions options;
+  if (!args.config.empty()) options = ReadSolveOptions(args.config, options);
+  // The command line wins over the file for what it names.
+  if (args.threads_given) options.image_threads = args.threads;
+  options.mle.num_threads = args.ceres_threads;
+  if (args.seed_given) options.seed = args.seed;
+  if (const std::string e = options.Validate(); !e.empty())
+    throw std::runtime_error("solve settings: " + e);
+  return options;
+}
+
 void RunSolve(const SolveArgs& args) {
   const fs::path dir(args.dir);
-  const dataset::Recording rec = interchange::ReadRecording(dir);
-  solver::PipelineOptions options;
-  options.image_threads = args.threads;
-  options.mle.num_threads = args.ceres_threads;
-  options.seed = args.seed;
+  // Settings first: a bad knob is reported before any file of the folder is read.
+  const solver::PipelineOptions options = OptionsOf(args);
+  const dataset::Recording rec = interchange::ReadRecordingForSolve(dir);
+  const fs::path results = dir / "results";
+  interchange::WriteFileAtomically(results / "solve_options.yaml", FormatSolveOptions(options));
   const auto t0 = std::chrono::steady_clock::now();
-  const solver::SolveOutput out = solver::SolveRecording(rec, FolderLoader(dir), options);
+  solver::SolveOutput out;
+  try {
+    out = solver::SolveRecording(rec, FolderLoader(dir), options);
+  } catch (const solver::SolveError& e) {
+    if (e.partial) {
+      for (const auto& d : e.partial->dropped)
+        std::fprintf(stderr, "dropped %s: %s\n", d.file.c_str(), d.reason.c_str());
+      WriteDiagnostics(dir, e.partial->detections);
+    }
+    throw;
+  }
   const double solve_s =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   for (const auto& d : out.dropped)
     std::fprintf(stderr, "dropped %s: %s\n", d.file.c_str(), d.reason.c_str());
-  const fs::path results = dir / "results";
   interchange::WriteMirrorPlanesCsv(results / "mirror_planes.csv", out.planes);
   interchange::WriteBeamsCsv(results / "beams.csv", out.beams);
   std::vector<dataset::ValidationRow> rows;
@@ -131,6 +274,7 @@ void RunSolve(const SolveArgs& args) {
   }
   summary["mirror_poses"] = SummaryJson(out, solve_s);
   interchange::WriteFileAtomically(summary_file, summary.dump(2) + "\n");
+  WriteDiagnostics(dir, out.detections);
   std::printf(
       "solved %d scan planes (%d fast-only, %d neutral), %zu beams in %.1f s\n"
       "validation: proposed %.4f deg RMS (%.3f px), baseline %.4f deg RMS, normalised %.2f, "
@@ -286,7 +430,21 @@ void AddSolveCommands(CLI::App& app) {
                    "the results vary from run to run)")
       ->check(CLI::PositiveNumber);
   solve->add_option("--seed", solve_args->seed, "Seed of the trigger-assignment RANSAC");
-  solve->callback([solve_args]() { RunSolve(*solve_args); });
+  solve->add_option("--explain", solve_args->explain,
+                    "Explain one image (as named in session.yaml, e.g. step1/0004.png): every "
+                    "board attempt and candidate blob with the reason it was kept or refused; "
+                    "solves nothing");
+  solve->add_option("--config", solve_args->config,
+                    "Solver settings (YAML: every detection and gating knob; the values used are "
+                    "written to DIR/results/solve_options.yaml, which this option reads back)");
+  solve->callback([solve_args, solve]() {
+    solve_args->threads_given = solve->count("--threads") > 0;
+    solve_args->seed_given = solve->count("--seed") > 0;
+    if (!solve_args->explain.empty())
+      RunExplain(*solve_args, OptionsOf(*solve_args));
+    else
+      RunSolve(*solve_args);
+  });
 
   auto t1 = std::make_shared<Table1Args>();
   CLI::App* exp =

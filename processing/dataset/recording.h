@@ -65,14 +65,16 @@ struct Step2Frame {
   std::vector<int> beams;
 };
 
+// MCU times are microseconds as decimal numbers: the interchange format allows a fraction
+// ("8999999.609") and every reader keeps it (the MCU's own stream is whole microseconds).
 struct HallReading {
-  int64_t mcu_time_us = 0;
+  double mcu_time_us = 0;
   double bx_uT = 0, by_uT = 0, bz_uT = 0;
 };
 
 struct HallRecording {
   std::vector<HallReading> readings;
-  std::vector<int64_t> clock_edges_us;  // MCU time of each clock rising edge, ascending
+  std::vector<double> clock_edges_us;  // MCU time of each clock rising edge, ascending
 };
 
 struct MargSample {

@@ -9,7 +9,8 @@ namespace msmcal::hall {
 
 std::string TimeBaseOptions::Validate() const {
   std::ostringstream s;
-  if (!(max_rate_error_ppm > 0)) s << "max_rate_error_ppm must be > 0, got " << max_rate_error_ppm;
+  if (!(max_rate_error_ppm > 0))
+    s << "max_rate_error_ppm must be > 0, got " << max_rate_error_ppm;
   else if (!(max_phase_error > 0 && max_phase_error < 0.5))
     s << "max_phase_error must be in (0, 0.5), got " << max_phase_error;
   return s.str();
@@ -25,11 +26,18 @@ LineFit FitIndexLine(const std::vector<double>& k, const std::vector<double>& ta
                      const std::vector<char>& keep) {
   double n = 0, sk = 0, st = 0;
   for (size_t i = 0; i < k.size(); ++i)
-    if (keep[i]) { n += 1; sk += k[i]; st += tau[i]; }
+    if (keep[i]) {
+      n += 1;
+      sk += k[i];
+      st += tau[i];
+    }
   const double mk = sk / n, mt = st / n;
   double skk = 0, skt = 0;
   for (size_t i = 0; i < k.size(); ++i)
-    if (keep[i]) { skk += (k[i] - mk) * (k[i] - mk); skt += (k[i] - mk) * (tau[i] - mt); }
+    if (keep[i]) {
+      skk += (k[i] - mk) * (k[i] - mk);
+      skt += (k[i] - mk) * (tau[i] - mt);
+    }
   LineFit f;
   f.b = skk > 0 ? skt / skk : 0;
   f.a = mt - f.b * mk;
@@ -38,18 +46,22 @@ LineFit FitIndexLine(const std::vector<double>& k, const std::vector<double>& ta
 
 }  // namespace
 
-TimeBase FitTimeBase(const std::vector<int64_t>& edges, double period_s, const TimeBaseOptions& options) {
-  if (const std::string e = options.Validate(); !e.empty()) throw std::invalid_argument("TimeBaseOptions: " + e);
+TimeBase FitTimeBase(const std::vector<double>& edges, double period_s,
+                     const TimeBaseOptions& options) {
+  if (const std::string e = options.Validate(); !e.empty())
+    throw std::invalid_argument("TimeBaseOptions: " + e);
   if (!(period_s > 0)) throw std::invalid_argument("FitTimeBase: pattern period must be > 0");
   if (edges.size() < 2)
-    throw std::invalid_argument("FitTimeBase: needs at least 2 clock edges, got " + std::to_string(edges.size()));
+    throw std::invalid_argument("FitTimeBase: needs at least 2 clock edges, got " +
+                                std::to_string(edges.size()));
   const double nominal_us = period_s * 1e6;
   // Period in MCU time: the median of the edge differences that are near the nominal period
   // (a missing edge gives 2T, a spurious one a fraction of T).
   std::vector<double> diffs;
   for (size_t i = 1; i < edges.size(); ++i) {
     const double d = static_cast<double>(edges[i] - edges[i - 1]);
-    if (std::abs(d / nominal_us - 1.0) < options.max_rate_error_ppm * 1e-6 + 0.01) diffs.push_back(d);
+    if (std::abs(d / nominal_us - 1.0) < options.max_rate_error_ppm * 1e-6 + 0.01)
+      diffs.push_back(d);
   }
   double period_us = nominal_us;
   if (!diffs.empty()) {
@@ -70,7 +82,8 @@ TimeBase FitTimeBase(const std::vector<int64_t>& edges, double period_s, const T
   // Duplicate indices (a spurious edge near a real one): keep the one closer to the grid.
   for (size_t i = 1; i < edges.size(); ++i) {
     if (keep[i] && keep[i - 1] && k[i] == k[i - 1]) {
-      const double ei = std::abs(tau[i] / period_us - k[i]), ep = std::abs(tau[i - 1] / period_us - k[i - 1]);
+      const double ei = std::abs(tau[i] / period_us - k[i]),
+                   ep = std::abs(tau[i - 1] / period_us - k[i - 1]);
       keep[ei < ep ? i - 1 : i] = 0;
     }
   }
@@ -91,7 +104,10 @@ TimeBase FitTimeBase(const std::vector<int64_t>& edges, double period_s, const T
   tb.pattern_period_s = period_s;
   double k_min = 1e300, k_max = -1e300, ss = 0;
   for (size_t i = 0; i < k.size(); ++i) {
-    if (!keep[i]) { ++tb.edges_rejected; continue; }
+    if (!keep[i]) {
+      ++tb.edges_rejected;
+      continue;
+    }
     ++tb.edges_used;
     k_min = std::min(k_min, k[i]);
     k_max = std::max(k_max, k[i]);
@@ -104,7 +120,8 @@ TimeBase FitTimeBase(const std::vector<int64_t>& edges, double period_s, const T
       << " clock edges do not fall on a grid of the pattern period " << period_s << " s";
     throw std::invalid_argument(s.str());
   }
-  if (tb.edges_used < 2) throw std::invalid_argument("FitTimeBase: fewer than 2 clock edges on a common grid");
+  if (tb.edges_used < 2)
+    throw std::invalid_argument("FitTimeBase: fewer than 2 clock edges on a common grid");
   tb.edges_missing = static_cast<int>(k_max - k_min + 1) - tb.edges_used;
   tb.jitter_rms_us = std::sqrt(ss / tb.edges_used);
   tb.rate_us_per_s = fit.b / period_s;

@@ -14,19 +14,21 @@
 namespace msmcal::hall {
 
 struct TimeBase {
-  double offset_us = 0;          // MCU time of generator time 0 (the first kept edge's pattern)
-  double rate_us_per_s = 1e6;    // MCU microseconds per generator second (1e6 * (1 + error))
-  double pattern_period_s = 0;   // T
+  double offset_us = 0;         // MCU time of generator time 0 (the first kept edge's pattern)
+  double rate_us_per_s = 1e6;   // MCU microseconds per generator second (1e6 * (1 + error))
+  double pattern_period_s = 0;  // T
   // Figures of the fit.
   int edges_used = 0;
-  int edges_rejected = 0;        // spurious or off-grid edges
-  int edges_missing = 0;         // gaps in the edge index sequence
-  double jitter_rms_us = 0;      // residual RMS of the kept edges
+  int edges_rejected = 0;    // spurious or off-grid edges
+  int edges_missing = 0;     // gaps in the edge index sequence
+  double jitter_rms_us = 0;  // residual RMS of the kept edges
 
-  double GeneratorTime(int64_t mcu_time_us) const {
-    return (static_cast<double>(mcu_time_us) - offset_us) / rate_us_per_s;
+  double GeneratorTime(double mcu_time_us) const {
+    return (mcu_time_us - offset_us) / rate_us_per_s;
   }
-  double McuTime(double generator_time_s) const { return offset_us + rate_us_per_s * generator_time_s; }
+  double McuTime(double generator_time_s) const {
+    return offset_us + rate_us_per_s * generator_time_s;
+  }
   // Rate error in parts per million.
   double RateErrorPpm() const { return (rate_us_per_s / 1e6 - 1.0) * 1e6; }
 };
@@ -42,7 +44,7 @@ struct TimeBaseOptions {
 
 // Throws std::invalid_argument with a clear message when fewer than 2 usable edges exist or
 // the edges do not fit a clock of period T.
-TimeBase FitTimeBase(const std::vector<int64_t>& clock_edges_us, double pattern_period_s,
+TimeBase FitTimeBase(const std::vector<double>& clock_edges_us, double pattern_period_s,
                      const TimeBaseOptions& options = {});
 
 }  // namespace msmcal::hall

@@ -8,6 +8,7 @@
 #include <exception>
 #include <map>
 #include <numeric>
+#include <opencv2/calib3d.hpp>
 #include <opencv2/core/utility.hpp>
 #include <optional>
 #include <random>
@@ -93,15 +94,100 @@ Eigen::VectorXd Features(double t, bool slow_on, double wf, double ws, bool harm
   return f;
 }
 
-// Laser dots land on the board: blobs outside its squares area (board outline corners,
-// reflections) are not dots.
+// Board (c, r) -> image homography of a detection, in squares.
+cv::Matx33d BoardHomography(const vision::CheckerboardDetection& board, vision::BoardSize size) {
+  std::vector<cv::Point2f> src, dst;
+  for (int r = 0; r < size.rows; ++r)
+    for (int c = 0; c < size.cols; ++c) {
+      src.emplace_back(static_cast<float>(c), static_cast<float>(r));
+      const auto& p = board.corners_px[r * size.cols + c];
+      dst.emplace_back(static_cast<float>(p.x()), static_cast<float>(p.y()));
+    }
+  const cv::Mat h = cv::findHomography(src, dst, 0);
+  if (h.empty()) return cv::Matx33d::eye();
+  return cv::Matx33d(h);
+}
+
+// Elongation (ratio of principal std devs) of a blob's shape mapped into the board's plane: a
+// laser spot is round there (or elongated by its incidence), whatever the plane's tilt to the
+// camera; board structure (top-hat residue of square corners and edges) is not.
+double SurfaceElongation(const vision::Dot& d, const cv::Matx33d& h) {
+  const cv::Matx33d hi = h.inv();
+  const cv::Vec3d u = hi * cv::Vec3d(d.centroid_px.x(), d.centroid_px.y(), 1.0);
+  if (std::abs(u[2]) < 1e-12) return 1e9;
+  const double bx = u[0] / u[2], by = u[1] / u[2];
+  const double w = h(2, 0) * bx + h(2, 1) * by + h(2, 2);
+  const double x = (h(0, 0) * bx + h(0, 1) * by + h(0, 2)) / w;
+  const double y = (h(1, 0) * bx + h(1, 1) * by + h(1, 2)) / w;
+  Eigen::Matrix2d j;
+  j << (h(0, 0) - x * h(2, 0)) / w, (h(0, 1) - x * h(2, 1)) / w, (h(1, 0) - y * h(2, 0)) / w,
+      (h(1, 1) - y * h(2, 1)) / w;
+  if (std::abs(j.determinant()) < 1e-12) return 1e9;
+  const Eigen::Matrix2d ji = j.inverse();
+  const Eigen::Matrix2d surf = ji * d.scatter_px2 * ji.transpose();
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> es(0.5 * (surf + surf.transpose()));
+  return std::sqrt(es.eigenvalues()(1) / std::max(es.eigenvalues()(0), 1e-300));
+}
+
+// RMS distance between a board's detected corners and their projection through the PnP pose;
+// -1 if none projects.
+double ReprojectionRms(const geometry::CameraModel& camera, const Rigid3d& cam_from_board,
+                       const std::vector<Eigen::Vector3d>& pts,
+                       const std::vector<Eigen::Vector2d>& px) {
+  double s2 = 0;
+  int n = 0;
+  for (size_t i = 0; i < pts.size() && i < px.size(); ++i)
+    if (const auto p = camera.Project(cam_from_board * pts[i])) {
+      s2 += (*p - px[i]).squaredNorm();
+      ++n;
+    }
+  return n ? std::sqrt(s2 / n) : -1.0;
+}
+
+// Why blobs of a frame were not taken as its laser dots (results/detections.csv).
+struct RegionRejections {
+  int off_plane = 0;          // outside the board's plane (beyond the margin, on the other board)
+  int junction = 0;           // at a square corner, elongated: top-hat residue
+  int surface_elongated = 0;  // elongated in the board's plane
+};
+
+// Laser dots land on the board's plane: the blobs inside the board's squares area grown by
+// `margin_squares` (the plate or screen around the printed pattern), not inside `exclude` (the
+// other board's outline, grown by half a square), round in the board's plane.
 std::vector<vision::Dot> DotsOnBoard(const std::vector<vision::Dot>& dots,
                                      const vision::CheckerboardDetection& board,
-                                     vision::BoardSize size) {
-  const auto outline = vision::SquaresOutline(board, size, /*margin_squares=*/0.0);
+                                     vision::BoardSize size, double margin_squares,
+                                     const PipelineOptions& o,
+                                     const std::vector<Eigen::Vector2d>& exclude,
+                                     RegionRejections* rej) {
+  const auto outline = vision::SquaresOutline(board, size, margin_squares);
+  const cv::Matx33d h = BoardHomography(board, size);
+  const double junction_px = o.junction_exclusion_squares * board.square_px;
   std::vector<vision::Dot> out;
-  for (const auto& d : dots)
-    if (vision::InsideOutline(outline, d.px)) out.push_back(d);
+  for (const auto& d : dots) {
+    if (!vision::InsideOutline(outline, d.px) ||
+        (!exclude.empty() && vision::InsideOutline(exclude, d.px))) {
+      ++rej->off_plane;
+      continue;
+    }
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> es(d.scatter_px2);
+    const double image_elongation =
+        std::sqrt(es.eigenvalues()(1) / std::max(es.eigenvalues()(0), 1e-12));
+    if (image_elongation > o.junction_elongation) {
+      bool at_corner = false;
+      for (const auto& c : board.corners_px)
+        at_corner = at_corner || (c - d.px).norm() < junction_px;
+      if (at_corner) {
+        ++rej->junction;
+        continue;
+      }
+    }
+    if (SurfaceElongation(d, h) > o.max_surface_elongation) {
+      ++rej->surface_elongated;
+      continue;
+    }
+    out.push_back(d);
+  }
   return out;
 }
 
@@ -178,7 +264,19 @@ std::string PipelineOptions::Validate() const {
   if (std::string e = boards.Validate(); !e.empty()) return "boards." + e;
   if (std::string e = mle.Validate(); !e.empty()) return "mle." + e;
   std::ostringstream s;
-  if (!(max_group_residual_px > 0))
+  if (!(step1_dot_margin_squares >= 0 && step1_dot_margin_squares <= 1000))
+    s << "step1_dot_margin_squares = " << step1_dot_margin_squares << " must be in [0, 1000]";
+  else if (!(step2_dot_margin_squares >= 0 && step2_dot_margin_squares <= 1000))
+    s << "step2_dot_margin_squares = " << step2_dot_margin_squares << " must be in [0, 1000]";
+  else if (!(max_surface_elongation >= 1 && max_surface_elongation <= 100))
+    s << "max_surface_elongation = " << max_surface_elongation << " must be in [1, 100]";
+  else if (!(junction_elongation >= 1))
+    s << "junction_elongation = " << junction_elongation << " must be >= 1";
+  else if (!(junction_exclusion_squares >= 0 && junction_exclusion_squares <= 1))
+    s << "junction_exclusion_squares = " << junction_exclusion_squares << " must be in [0, 1]";
+  else if (max_surplus_dots < 0 || max_surplus_dots > 50)
+    s << "max_surplus_dots = " << max_surplus_dots << " must be in [0, 50]";
+  else if (!(max_group_residual_px > 0))
     s << "max_group_residual_px = " << max_group_residual_px << " must be > 0";
   else if (!(partial_frame_group_residual_px > 0))
     s << "partial_frame_group_residual_px = " << partial_frame_group_residual_px << " must be > 0";
@@ -308,10 +406,6 @@ namespace {
 // What one image shows: the boards asked for (in order) and the laser dots. Measured for all
 // images before the solve, `threads` images at a time; each image is measured on one thread
 // and stored by its index, so the outcome does not depend on the scheduling.
-struct ImageMeasurement {
-  std::vector<std::optional<vision::CheckerboardDetection>> boards;
-  std::vector<vision::Dot> dots;  // only when the last board asked for was found
-};
 
 // Turns OpenCV's own parallel loops off while alive (restores the previous setting): their
 // results depend on the number of CPUs and on the load (stripe boundaries and completion
@@ -359,15 +453,9 @@ std::vector<ImageMeasurement> MeasureImages(
   ForEachImage(files.size(), threads, [&](size_t i) {
     // OpenCV's detectors draw from the calling thread's cv::theRNG(): reseed it per image so
     // that an image's measurement does not depend on which images its thread measured before.
-    cv::theRNG() = cv::RNG(0x6d736d63616cULL);
     const cv::Mat img = load(files[i]);
     if (img.empty()) throw SolveError(files[i] + ": cannot read the image");
-    ImageMeasurement& m = out[i];
-    if (boards[i].size() == 1)
-      m.boards = {vision::DetectCheckerboard(img, boards[i][0], board_options)};
-    else
-      m.boards = vision::DetectCheckerboards(img, boards[i], board_options);
-    if (!m.boards.empty() && m.boards.back()) m.dots = vision::DetectDots(img, dot_options);
+    out[i] = MeasureImage(img, boards[i], dot_options, board_options);
   });
   return out;
 }
@@ -495,6 +583,27 @@ cv::Mat AverageExposures(const std::vector<std::string>& files, const ImageLoade
 
 }  // namespace
 
+ImageMeasurement MeasureImage(const cv::Mat& img, const std::vector<vision::BoardSize>& boards,
+                              const vision::DotOptions& dot_options,
+                              const vision::CheckerboardOptions& board_options) {
+  // OpenCV's detectors draw from the calling thread's cv::theRNG(): reseed it per image so
+  // that an image's measurement does not depend on which images its thread measured before.
+  cv::theRNG() = cv::RNG(0x6d736d63616cULL);
+  ImageMeasurement m;
+  m.image_size = img.size();
+  m.channels = img.channels();
+  m.depth_bits = img.depth() == CV_16U ? 16 : 8;
+  if (boards.size() == 1) {
+    m.board_attempts.resize(1);
+    m.boards = {
+        vision::DetectCheckerboard(img, boards[0], board_options, cv::Mat(), &m.board_attempts[0])};
+  } else {
+    m.boards = vision::DetectCheckerboards(img, boards, board_options, &m.board_attempts);
+  }
+  m.dots = vision::DetectDots(img, dot_options, &m.dot_rejections);
+  return m;
+}
+
 SolveOutput SolveRecording(const dataset::Recording& input, const ImageLoader& input_load,
                            const PipelineOptions& o) {
   if (const std::string e = o.Validate(); !e.empty()) throw SolveError("PipelineOptions: " + e);
@@ -533,14 +642,60 @@ SolveOutput SolveRecording(const dataset::Recording& input, const ImageLoader& i
     img.convertTo(wide, CV_MAKETYPE(CV_16U, img.channels()), 257.0);
     return wide;
   };
-  // Errors carry the frames dropped so far: they usually explain the failure.
+  // Per measured (collapsed) frame: what was measured and decided (results/detections.csv).
+  std::vector<FrameDetection> det;
+  // Expands `det` to one row per frame of the input (exposures share their scene's row) and
+  // marks the dropped ones.
+  auto finish_detections = [&](SolveOutput* o_out) {
+    std::map<std::string, std::string> dropped_reason;
+    for (const auto& d : out.dropped) dropped_reason.emplace(d.file, d.reason);
+    std::map<std::string, const FrameDetection*> by_scene;
+    for (const auto& d : det) by_scene[d.file] = &d;
+    o_out->detections.clear();
+    auto add = [&](const std::string& file, const std::string& step) {
+      std::string scene = file;
+      if (exposures)
+        for (const auto& [first, members] : exposures->members)
+          if (std::find(members.begin(), members.end(), file) != members.end()) scene = first;
+      FrameDetection d;
+      if (const auto it = by_scene.find(scene); it != by_scene.end()) d = *it->second;
+      d.file = file;
+      d.step = step;
+      d.scene = scene;
+      if (const auto it = dropped_reason.find(scene); it != dropped_reason.end()) {
+        // "... frame used for the sliding board only": used in part.
+        if (it->second.find("used for the sliding board only") != std::string::npos) {
+          d.used = true;
+          d.partial = true;
+          d.note = it->second;
+        } else {
+          d.used = false;
+          d.reason = it->second;
+        }
+      } else if (d.dots_found >= 0) {
+        d.used = true;
+      } else if (d.reason.empty()) {
+        d.used = false;
+        d.reason = "not reached: the solve stopped before this frame was used";
+      }
+      o_out->detections.push_back(std::move(d));
+    };
+    for (const auto& f : input.step1) add(f.file, "step1");
+    for (const auto& f : input.step2) add(f.file, "step2");
+  };
+  // Errors carry the frames dropped so far (they usually explain the failure) and the
+  // detections up to the failure.
   auto fail = [&](const std::string& what) {
     std::string msg = what;
     if (!out.dropped.empty()) {
       msg += "; frames dropped:";
       for (const auto& d : out.dropped) msg += " [" + d.file + ": " + d.reason + "]";
     }
-    return SolveError(msg);
+    auto partial = std::make_shared<SolveOutput>();
+    partial->dropped = out.dropped;
+    partial->notes = out.notes;
+    finish_detections(partial.get());
+    return SolveError(msg, partial);
   };
   // Beams.
   std::map<int, int> beam_index;
@@ -607,6 +762,28 @@ SolveOutput SolveRecording(const dataset::Recording& input, const ImageLoader& i
       throw fail(e.what());
     }
   }
+  for (size_t i = 0; i < measured.size(); ++i) {
+    const bool first = i < rec.step1.size();
+    FrameDetection d;
+    d.file = first ? rec.step1[i].file : rec.step2[i - rec.step1.size()].file;
+    d.step = first ? "step1" : "step2";
+    const std::vector<std::string> names =
+        first ? std::vector<std::string>{"world", "sliding"} : std::vector<std::string>{"world"};
+    for (size_t b = 0; b < measured[i].boards.size(); ++b) {
+      FrameDetection::Board board;
+      board.name = names[b];
+      if (const auto& found = measured[i].boards[b]) {
+        board.found = true;
+        board.method = vision::ToString(found->method);
+        board.square_px = found->square_px;
+        board.corners_px = found->corners_px;
+      }
+      d.boards.push_back(board);
+    }
+    d.blobs = static_cast<int>(measured[i].dots.size());
+    d.rejected = measured[i].dot_rejections;
+    det.push_back(std::move(d));
+  }
   size_t next_measured = 0;
   auto to_obs = [](const vision::Dot& d) { return PixelObs{d.px, d.cov_px2}; };
 
@@ -626,14 +803,29 @@ SolveOutput SolveRecording(const dataset::Recording& input, const ImageLoader& i
   std::optional<Rigid3d> c1_from_world;
   size_t c1_corners = 0;
   for (const auto& f : rec.step1) {
+    FrameDetection& fd = det[next_measured];
     const ImageMeasurement& m = measured[next_measured++];
     const auto& boards = m.boards;
+    fd.dots_expected = static_cast<int>(f.beams.size());
     if (!boards[1]) {
       out.dropped.push_back(
           {f.file, "sliding board (" + SizeText(rec.sliding_board) + ") not found"});
       continue;
     }
-    auto dots = DotsOnBoard(m.dots, *boards[1], sliding_size);
+    RegionRejections region;
+    auto dots = DotsOnBoard(m.dots, *boards[1], sliding_size, o.step1_dot_margin_squares, o,
+                            boards[0] ? vision::SquaresOutline(*boards[0], world_size, 0.5)
+                                      : std::vector<Eigen::Vector2d>{},
+                            &region);
+    fd.dots_found = static_cast<int>(dots.size());
+    fd.off_plane = region.off_plane;
+    fd.junction = region.junction;
+    fd.surface_elongated = region.surface_elongated;
+    for (const auto& d : dots) fd.dots_px.push_back(d.px);
+    for (const auto& d : m.dots)
+      if (std::none_of(dots.begin(), dots.end(),
+                       [&](const vision::Dot& k) { return k.px == d.px; }))
+        fd.refused_px.push_back(d.px);
     if (f.beams.empty() && !dots.empty()) {
       out.notes.push_back(f.file + ": background frame (every beam blocked) shows " +
                           std::to_string(dots.size()) + " dot-like blob(s); ignored");
@@ -662,7 +854,12 @@ SolveOutput SolveRecording(const dataset::Recording& input, const ImageLoader& i
       out.dropped.push_back({f.file, "PnP of the sliding board failed"});
       continue;
     }
+    fd.boards[1].corner_rms_px =
+        ReprojectionRms(rec.camera, *c1s, sliding_pts, boards[1]->corners_px);
     if (boards[0]) {
+      if (auto t = SolvePlanarPnP(rec.camera, world_pts, boards[0]->corners_px))
+        fd.boards[0].corner_rms_px =
+            ReprojectionRms(rec.camera, *t, world_pts, boards[0]->corners_px);
       obs.corners.push_back({BoardView::kC1World, -1, world_pts, boards[0]->corners_px});
       corners_clear.push_back(CornersClearOfDots(*boards[0], m.dots));
       if (world_pts.size() > c1_corners) {
@@ -674,6 +871,8 @@ SolveOutput SolveRecording(const dataset::Recording& input, const ImageLoader& i
     } else {
       out.notes.push_back(f.file +
                           ": world board not found; frame used for the sliding board only");
+      fd.partial = true;
+      fd.note = "world board not found: used for the sliding board only";
     }
     const int pose = pose_remap.emplace(f.pose, static_cast<int>(pose_remap.size())).first->second;
     obs.corners.push_back({BoardView::kC1Sliding, pose, sliding_pts, boards[1]->corners_px});
@@ -836,19 +1035,43 @@ SolveOutput SolveRecording(const dataset::Recording& input, const ImageLoader& i
   std::vector<S2> s2;
   std::optional<Rigid3d> c2_from_world;
   for (const auto& f : rec.step2) {
+    FrameDetection& fd = det[rec.step1.size() + (&f - rec.step2.data())];
     const ImageMeasurement& m = measured[rec.step1.size() + (&f - rec.step2.data())];
     const auto& board = m.boards[0];
+    const size_t triggers = f.kind == Step2Kind::kNeutral ? 1 : f.triggers.size();
+    const size_t expected = triggers * f.beams.size();
+    fd.dots_expected = static_cast<int>(expected);
     if (!board) {
       out.dropped.push_back({f.file, "world board (" + SizeText(rec.world_board) + ") not found"});
       continue;
     }
-    const size_t triggers = f.kind == Step2Kind::kNeutral ? 1 : f.triggers.size();
-    const auto dots = DotsOnBoard(m.dots, *board, world_size);
-    const size_t expected = triggers * f.beams.size();
+    RegionRejections region;
+    const auto dots =
+        DotsOnBoard(m.dots, *board, world_size, o.step2_dot_margin_squares, o, {}, &region);
+    fd.dots_found = static_cast<int>(dots.size());
+    fd.off_plane = region.off_plane;
+    fd.junction = region.junction;
+    fd.surface_elongated = region.surface_elongated;
+    for (const auto& d : dots) fd.dots_px.push_back(d.px);
+    for (const auto& d : m.dots)
+      if (std::none_of(dots.begin(), dots.end(),
+                       [&](const vision::Dot& k) { return k.px == d.px; }))
+        fd.refused_px.push_back(d.px);
+    if (auto t = SolvePlanarPnP(rec.camera, world_pts, board->corners_px))
+      fd.boards[0].corner_rms_px = ReprojectionRms(rec.camera, *t, world_pts, board->corners_px);
     // Fewer dots than expected (two spots merged, one off the board): the triggers whose dots
-    // are all there are still grouped, under a tighter tolerance (below).
+    // are all there are still grouped, under a tighter tolerance (below). More (stray blobs on
+    // the world plane): the mirror-plane consistency picks the dots.
     const bool partial = dots.size() < expected && dots.size() >= 2;
-    if (dots.size() != expected && !partial) {
+    const bool surplus =
+        dots.size() > expected && dots.size() <= expected + static_cast<size_t>(o.max_surplus_dots);
+    if (surplus) {
+      out.notes.push_back(f.file + ": " + std::to_string(dots.size()) + " dot-like blobs, " +
+                          std::to_string(expected) +
+                          " expected; the reflection grouping picks the consistent ones");
+      fd.note = std::to_string(dots.size() - expected) + " surplus blob(s) left out by grouping";
+    }
+    if (dots.size() != expected && !partial && !surplus) {
       out.dropped.push_back({f.file, "found " + std::to_string(dots.size()) +
                                          " laser dots, expected " + std::to_string(expected) +
                                          " (" + std::to_string(triggers) + " trigger(s) x " +
@@ -995,6 +1218,11 @@ SolveOutput SolveRecording(const dataset::Recording& input, const ImageLoader& i
     }
     const bool tentative = !recovered.empty() && recovered.back().frame == static_cast<int>(fi);
     if (s.partial && (!accepted.empty() || tentative)) {
+      FrameDetection& pfd = det[rec.step1.size() + (s.frame - rec.step2.data())];
+      pfd.partial = true;
+      pfd.note = std::to_string(accepted.size()) + " of " + std::to_string(want) +
+                 " trigger(s) kept (" + std::to_string(n) + " of " +
+                 std::to_string(want * s.frame->beams.size()) + " dots found)";
       out.notes.push_back(s.frame->file + ": " + std::to_string(n) + " of " +
                           std::to_string(want * s.frame->beams.size()) + " laser dots found; " +
                           std::to_string(accepted.size()) + " of " + std::to_string(want) +
@@ -1359,6 +1587,7 @@ SolveOutput SolveRecording(const dataset::Recording& input, const ImageLoader& i
     out.rms_baseline_px = std::sqrt(sb_px / n);
     out.rms_normalised_validation = std::sqrt(s_norm / n);
   }
+  finish_detections(&out);
   return out;
 }
 

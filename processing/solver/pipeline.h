@@ -10,6 +10,7 @@
 // needed are dropped and listed in SolveOutput::dropped with the reason.
 
 #include <functional>
+#include <memory>
 #include <opencv2/core.hpp>
 #include <stdexcept>
 #include <string>
@@ -23,9 +24,17 @@
 
 namespace msmcal::solver {
 
+struct SolveOutput;
+
+// A solve that cannot go on. `partial` (when set) holds what was measured and decided up to the
+// failure: detections per frame, dropped frames, notes (results/detections.csv is written from
+// it, so that a failed solve still says why).
 class SolveError : public std::runtime_error {
  public:
   using std::runtime_error::runtime_error;
+  SolveError(const std::string& what, std::shared_ptr<const SolveOutput> partial)
+      : std::runtime_error(what), partial(std::move(partial)) {}
+  std::shared_ptr<const SolveOutput> partial;
 };
 
 // Loads an image by its file name as written in session.yaml ("step1/0000.png"). Returns an empty
@@ -43,6 +52,24 @@ struct PipelineOptions {
   // score ~0.2 px on the simulator; with two estimate beams a wrong pairing can still fit a
   // plane, the held-out beams' dots are the check).
   double partial_frame_group_residual_px = 2.0;
+  // Where a frame's laser dots are looked for: blobs inside the board's squares area grown by
+  // this many squares (step 1: the sliding plate around its pattern, never on the world board;
+  // step 2: the world plane, a screen around the world board).
+  double step1_dot_margin_squares = 3.0;
+  double step2_dot_margin_squares = 8.0;
+  // A laser spot is round in the plane it lands on, or elongated by its incidence (2 at 60 deg):
+  // the blob's shape mapped into the board's plane through the board's homography may be at
+  // most this elongated (the image-space limit is dots.max_elongation, loose: an oblique plate
+  // elongates a round spot in the image).
+  double max_surface_elongation = 2.0;
+  // Blobs more elongated in the image than junction_elongation and within
+  // junction_exclusion_squares of a detected inner corner are the top-hat's residue of the
+  // checkerboard's X-junctions, not spots.
+  double junction_elongation = 1.3;
+  double junction_exclusion_squares = 0.25;
+  // A step 2 frame with more blobs than expected is still grouped (the mirror-plane consistency
+  // picks the dots) unless the surplus exceeds this.
+  int max_surplus_dots = 12;
   // Trigger-index assignment inside multi-trigger frames (RANSAC over a drive-phase model).
   int ransac_iterations = 3000;
   double ransac_inlier_deg = 0.4;
@@ -63,6 +90,35 @@ struct PipelineOptions {
 struct DroppedFrame {
   std::string file;
   std::string reason;
+};
+
+// What the solver measured and decided for one image (results/detections.csv, the annotated
+// diagnostics). One per frame of session.yaml; repeated exposures of one scene share the
+// scene's measurement (`scene` names its first exposure).
+struct FrameDetection {
+  std::string file;
+  std::string step;  // "step1" | "step2"
+  std::string scene;
+  bool used = false;
+  bool partial = false;  // used in part (sliding board only, some triggers, world board missing)
+  std::string reason;    // why it was dropped (empty when used)
+  std::string note;      // how it was used in part
+  struct Board {
+    std::string name;  // "world" | "sliding"
+    bool found = false;
+    std::string method;  // vision::ToString(BoardMethod)
+    double square_px = 0;
+    double corner_rms_px = -1;  // PnP reprojection RMS of its corners; -1: not computed
+    std::vector<Eigen::Vector2d> corners_px;
+  };
+  std::vector<Board> boards;
+  int blobs = 0;        // blobs that passed the image-level dot checks
+  int dots_found = -1;  // on the board's plane (-1: not looked for: no board)
+  int dots_expected = 0;
+  vision::DotRejections rejected;                          // image-level refusals by reason
+  int off_plane = 0, junction = 0, surface_elongated = 0;  // plane-level refusals
+  std::vector<Eigen::Vector2d> dots_px;                    // the frame's dots on the board's plane
+  std::vector<Eigen::Vector2d> refused_px;                 // blobs refused at plane level
 };
 
 struct ValidationDetail {
@@ -86,7 +142,8 @@ struct SolveOutput {
   std::vector<dataset::BeamRow> beams;          // every beam (estimate and validate)
   std::vector<ValidationDetail> validation;
   std::vector<DroppedFrame> dropped;
-  std::vector<std::string> notes;  // what the solver decided (associations, counts)
+  std::vector<FrameDetection> detections;  // one per frame of session.yaml, in its order
+  std::vector<std::string> notes;          // what the solver decided (associations, counts)
   geometry::Rigid3d world_from_mirror0;
   // Covariance of {0}'s error [rotation vector (rad, in {W}: R_true = Exp(-e) R_est, small),
   // X_O (mm, in {W})], propagated from the neutral, fast-only and scan planes.
@@ -102,6 +159,21 @@ struct SolveOutput {
 
 SolveOutput SolveRecording(const dataset::Recording& recording, const ImageLoader& load,
                            const PipelineOptions& options = {});
+
+// Stage: image measurement. The boards asked for (in order; step 1: world, sliding; step 2:
+// world) and every dot-like blob of one image, with what each detector tried and why blobs were
+// refused. Deterministic (reseeds OpenCV's RNG of the calling thread).
+struct ImageMeasurement {
+  std::vector<std::optional<vision::CheckerboardDetection>> boards;
+  std::vector<std::vector<vision::BoardAttempt>> board_attempts;  // per board asked for
+  std::vector<vision::Dot> dots;
+  vision::DotRejections dot_rejections;
+  cv::Size image_size;
+  int channels = 1, depth_bits = 8;
+};
+ImageMeasurement MeasureImage(const cv::Mat& image, const std::vector<vision::BoardSize>& boards,
+                              const vision::DotOptions& dot_options,
+                              const vision::CheckerboardOptions& board_options);
 
 // Trigger-index assignment, exposed for tests. Each group is one mirror plane from a frame with
 // several triggers; its pose angles (deg) are in a provisional home frame. For each frame, finds

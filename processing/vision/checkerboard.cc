@@ -25,6 +25,13 @@ std::string CheckerboardOptions::Validate() const {
   std::ostringstream s;
   if (coarse_max_side_px < 200)
     s << "coarse_max_side_px = " << coarse_max_side_px << " must be >= 200";
+  else if (upscale_max_side_px < 0)
+    s << "upscale_max_side_px = " << upscale_max_side_px << " must be >= 0";
+  else if (!(max_refine_shift_squares > 0 && max_refine_shift_squares <= 1))
+    s << "max_refine_shift_squares = " << max_refine_shift_squares << " must be in (0, 1]";
+  else if (!(max_grid_irregularity_squares > 0 && max_grid_irregularity_squares <= 1))
+    s << "max_grid_irregularity_squares = " << max_grid_irregularity_squares
+      << " must be in (0, 1]";
   return s.str();
 }
 
@@ -75,9 +82,101 @@ std::vector<Eigen::Vector2d> CanonicalCornerOrder(const std::vector<Eigen::Vecto
   return g;
 }
 
+namespace {
+
+// Median distance between neighbouring corners of a row-major rows x cols grid.
+double MedianSpacing(const std::vector<cv::Point2f>& g, BoardSize size) {
+  std::vector<double> d;
+  for (int r = 0; r < size.rows; ++r)
+    for (int c = 0; c < size.cols; ++c) {
+      const auto& p = g[r * size.cols + c];
+      if (c + 1 < size.cols) d.push_back(cv::norm(g[r * size.cols + c + 1] - p));
+      if (r + 1 < size.rows) d.push_back(cv::norm(g[(r + 1) * size.cols + c] - p));
+    }
+  std::nth_element(d.begin(), d.begin() + d.size() / 2, d.end());
+  return d[d.size() / 2];
+}
+
+// Largest second difference along rows and columns, in units of the local spacing: a true grid
+// under perspective and lens distortion stays far below the limit, a grid strung over the wrong
+// points does not.
+double GridIrregularity(const std::vector<cv::Point2f>& g, BoardSize size) {
+  double worst = 0;
+  auto at = [&](int r, int c) { return g[r * size.cols + c]; };
+  for (int r = 0; r < size.rows; ++r)
+    for (int c = 0; c < size.cols; ++c) {
+      if (c > 0 && c + 1 < size.cols) {
+        const double s = 0.5 * (cv::norm(at(r, c + 1) - at(r, c - 1)));
+        worst = std::max(worst,
+                         cv::norm(at(r, c - 1) + at(r, c + 1) - 2 * at(r, c)) / std::max(s, 1e-6));
+      }
+      if (r > 0 && r + 1 < size.rows) {
+        const double s = 0.5 * (cv::norm(at(r + 1, c) - at(r - 1, c)));
+        worst = std::max(worst,
+                         cv::norm(at(r - 1, c) + at(r + 1, c) - 2 * at(r, c)) / std::max(s, 1e-6));
+      }
+    }
+  return worst;
+}
+
+// Runs one detector of the chain on `gray` scaled by `scale` (1: as is); corners in full
+// resolution pixels (pixel-centre convention: p_full = (p_scaled + 0.5) / scale - 0.5).
+bool RunDetector(const cv::Mat& gray, BoardSize size, BoardMethod method, double scale,
+                 std::vector<cv::Point2f>* found) {
+  cv::Mat img;
+  if (scale < 1.0)
+    cv::resize(gray, img, cv::Size(), scale, scale, cv::INTER_AREA);
+  else if (scale > 1.0)
+    cv::resize(gray, img, cv::Size(), scale, scale, cv::INTER_LINEAR);
+  else
+    img = gray;
+  const cv::Size pattern(size.cols, size.rows);
+  bool ok = false;
+  switch (method) {
+    case BoardMethod::kSbCoarse:
+    case BoardMethod::kSbFull:
+      ok = cv::findChessboardCornersSB(img, pattern, *found, 0);
+      break;
+    case BoardMethod::kSbUpscaled:
+      ok = cv::findChessboardCornersSB(img, pattern, *found, cv::CALIB_CB_NORMALIZE_IMAGE);
+      break;
+    case BoardMethod::kClassic:
+      // FAST_CHECK: without it, an image where the board is not found costs tens of seconds
+      // in the detector's dilation and threshold loops (measured: 35 s on 1600 x 1200).
+      ok = cv::findChessboardCorners(
+          img, pattern, *found,
+          cv::CALIB_CB_ADAPTIVE_THRESH | cv::CALIB_CB_NORMALIZE_IMAGE | cv::CALIB_CB_FAST_CHECK);
+      break;
+  }
+  if (!ok || found->size() != static_cast<size_t>(size.cols * size.rows)) return false;
+  if (scale != 1.0)
+    for (auto& p : *found) {
+      p.x = static_cast<float>((p.x + 0.5) / scale - 0.5);
+      p.y = static_cast<float>((p.y + 0.5) / scale - 0.5);
+    }
+  return true;
+}
+
+}  // namespace
+
+const char* ToString(BoardMethod method) {
+  switch (method) {
+    case BoardMethod::kSbCoarse:
+      return "sb_coarse";
+    case BoardMethod::kSbFull:
+      return "sb_full";
+    case BoardMethod::kSbUpscaled:
+      return "sb_upscaled";
+    case BoardMethod::kClassic:
+      return "classic";
+  }
+  return "?";
+}
+
 std::optional<CheckerboardDetection> DetectCheckerboard(const cv::Mat& image, BoardSize size,
                                                         const CheckerboardOptions& options,
-                                                        const cv::Mat& mask) {
+                                                        const cv::Mat& mask,
+                                                        std::vector<BoardAttempt>* attempts) {
   if (const std::string err = options.Validate(); !err.empty())
     throw std::invalid_argument("CheckerboardOptions: " + err);
   if (size.cols < 2 || size.rows < 2)
@@ -88,49 +187,70 @@ std::optional<CheckerboardDetection> DetectCheckerboard(const cv::Mat& image, Bo
     gray.copyTo(masked, mask);
     gray = masked;
   }
-  // Coarse search on a ladder of scales (findChessboardCornersSB succeeds or fails somewhat
-  // erratically with the square size in pixels), full resolution last.
+  // The chain: SB on a ladder of coarse scales (it succeeds or fails somewhat erratically with
+  // the square size in pixels), SB at full resolution, SB upscaled (small squares), classic.
   const int side = std::max(gray.cols, gray.rows);
-  std::vector<double> scales;
+  std::vector<std::pair<BoardMethod, double>> chain;
   for (double f : {1.0, 0.7, 1.4}) {
     const double s = f * options.coarse_max_side_px / side;
-    if (s < 1.0) scales.push_back(s);
+    if (s < 1.0) chain.emplace_back(BoardMethod::kSbCoarse, s);
   }
-  scales.push_back(1.0);
-  std::vector<cv::Point2f> found;
-  bool ok = false;
-  for (double scale : scales) {
-    cv::Mat small;
-    if (scale < 1.0)
-      cv::resize(gray, small, cv::Size(), scale, scale, cv::INTER_AREA);
-    else
-      small = gray;
-    if (!cv::findChessboardCornersSB(small, cv::Size(size.cols, size.rows), found, 0)) continue;
-    for (auto& p : found) {
-      // Pixel-centre convention: p_full = (p_small + 0.5) / scale - 0.5.
-      p.x = static_cast<float>((p.x + 0.5) / scale - 0.5);
-      p.y = static_cast<float>((p.y + 0.5) / scale - 0.5);
+  if (options.try_sb_full || chain.empty()) chain.emplace_back(BoardMethod::kSbFull, 1.0);
+  if (options.try_classic) chain.emplace_back(BoardMethod::kClassic, 1.0);
+  if (options.try_sb_upscaled && 2 * side <= options.upscale_max_side_px)
+    chain.emplace_back(BoardMethod::kSbUpscaled, 2.0);
+  for (const auto& [method, scale] : chain) {
+    BoardAttempt attempt{method, scale, false, false, ""};
+    std::vector<cv::Point2f> found;
+    attempt.found = RunDetector(gray, size, method, scale, &found);
+    if (!attempt.found) {
+      if (attempts) attempts->push_back(attempt);
+      continue;
     }
-    ok = true;
-    break;
+    const double spacing = MedianSpacing(found, size);
+    if (const double irr = GridIrregularity(found, size);
+        irr > options.max_grid_irregularity_squares) {
+      std::ostringstream why;
+      why << "grid irregular: a corner " << irr << " squares off its neighbours' line (> "
+          << options.max_grid_irregularity_squares << ")";
+      attempt.note = why.str();
+      if (attempts) attempts->push_back(attempt);
+      continue;
+    }
+    // Refinement window from the smallest corner spacing.
+    double min_spacing = 1e9;
+    for (int r = 0; r < size.rows; ++r)
+      for (int c = 0; c + 1 < size.cols; ++c)
+        min_spacing = std::min<double>(
+            min_spacing, cv::norm(found[r * size.cols + c + 1] - found[r * size.cols + c]));
+    const int win = std::clamp(static_cast<int>(min_spacing * 0.3), 2, 15);
+    const std::vector<cv::Point2f> before = found;
+    cv::cornerSubPix(gray, found, cv::Size(win, win), cv::Size(-1, -1),
+                     cv::TermCriteria(cv::TermCriteria::EPS + cv::TermCriteria::COUNT, 40, 1e-3));
+    double shift = 0;
+    for (size_t i = 0; i < found.size(); ++i)
+      shift = std::max<double>(shift, cv::norm(found[i] - before[i]));
+    if (shift > options.max_refine_shift_squares * spacing) {
+      std::ostringstream why;
+      why << "sub-pixel refinement moved a corner " << shift << " px (> "
+          << options.max_refine_shift_squares << " of a " << spacing << " px square)";
+      attempt.note = why.str();
+      if (attempts) attempts->push_back(attempt);
+      continue;
+    }
+    attempt.accepted = true;
+    if (attempts) attempts->push_back(attempt);
+    std::vector<Eigen::Vector2d> grid;
+    grid.reserve(found.size());
+    for (const auto& p : found) grid.emplace_back(p.x, p.y);
+    CheckerboardDetection det;
+    det.corners_px = CanonicalCornerOrder(grid, size, gray);
+    det.refine_half_window_px = win;
+    det.method = method;
+    det.square_px = spacing;
+    return det;
   }
-  if (!ok) return std::nullopt;
-  // Refinement window from the smallest corner spacing.
-  double spacing = 1e9;
-  for (int r = 0; r < size.rows; ++r)
-    for (int c = 0; c + 1 < size.cols; ++c)
-      spacing = std::min<double>(spacing,
-                                 cv::norm(found[r * size.cols + c + 1] - found[r * size.cols + c]));
-  const int win = std::clamp(static_cast<int>(spacing * 0.3), 2, 15);
-  cv::cornerSubPix(gray, found, cv::Size(win, win), cv::Size(-1, -1),
-                   cv::TermCriteria(cv::TermCriteria::EPS + cv::TermCriteria::COUNT, 40, 1e-3));
-  std::vector<Eigen::Vector2d> grid;
-  grid.reserve(found.size());
-  for (const auto& p : found) grid.emplace_back(p.x, p.y);
-  CheckerboardDetection det;
-  det.corners_px = CanonicalCornerOrder(grid, size, gray);
-  det.refine_half_window_px = win;
-  return det;
+  return std::nullopt;
 }
 
 std::vector<char> CornersClearOfSpots(const CheckerboardDetection& board,
@@ -180,7 +300,9 @@ bool InsideOutline(const std::vector<Eigen::Vector2d>& outline, const Eigen::Vec
 }
 
 std::vector<std::optional<CheckerboardDetection>> DetectCheckerboards(
-    const cv::Mat& image, const std::vector<BoardSize>& sizes, const CheckerboardOptions& options) {
+    const cv::Mat& image, const std::vector<BoardSize>& sizes, const CheckerboardOptions& options,
+    std::vector<std::vector<BoardAttempt>>* attempts) {
+  if (attempts) attempts->assign(sizes.size(), {});
   std::vector<size_t> order(sizes.size());
   std::iota(order.begin(), order.end(), 0);
   std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) {
@@ -189,7 +311,8 @@ std::vector<std::optional<CheckerboardDetection>> DetectCheckerboards(
   std::vector<std::optional<CheckerboardDetection>> out(sizes.size());
   cv::Mat mask(image.size(), CV_8U, cv::Scalar(255));
   for (size_t k : order) {
-    out[k] = DetectCheckerboard(image, sizes[k], options, mask);
+    out[k] =
+        DetectCheckerboard(image, sizes[k], options, mask, attempts ? &(*attempts)[k] : nullptr);
     if (!out[k]) continue;
     // Mask the board's hull, grown by one square on each side.
     const auto& c = out[k]->corners_px;

@@ -7,8 +7,13 @@
 // from the camera). Corners are returned as index r * cols + c for board point
 // (c * square, r * square, 0), whatever the board's rotation in the image.
 //
-// Speed: the board is found on a downscaled copy (cv::findChessboardCornersSB) and refined at
-// full resolution with cv::cornerSubPix.
+// Detection is a fallback chain (BoardMethod), cheapest first, each refined at full resolution
+// with cv::cornerSubPix: findChessboardCornersSB on a ladder of downscaled copies, SB at full
+// resolution, the classic quad detector (cv::findChessboardCorners with adaptive threshold; it
+// finds small, blurred or unevenly lit boards that SB misses), then SB on a 2x upscaled copy
+// (squares below ~12 px; small images only). Every candidate grid must pass a geometric check
+// (corners refined within a fraction of a square of where the detector put them, a locally
+// consistent grid) before it is accepted; the method that found the board is recorded.
 
 #include <Eigen/Core>
 #include <opencv2/core.hpp>
@@ -23,10 +28,33 @@ struct BoardSize {
   int rows = 0;  // inner corners along Y
 };
 
+// The detectors of the fallback chain, in the order they are tried.
+enum class BoardMethod { kSbCoarse, kSbFull, kClassic, kSbUpscaled };
+const char* ToString(BoardMethod method);  // "sb_coarse" | "sb_full" | "classic" | "sb_upscaled"
+
 struct CheckerboardOptions {
   // The coarse search runs on an image whose longer side is at most this many pixels.
   int coarse_max_side_px = 1400;
+  // Fallbacks, tried in this order when the coarse SB search fails.
+  bool try_sb_full = true;
+  bool try_sb_upscaled = true;  // only where the upscaled longer side is <= upscale_max_side_px
+  int upscale_max_side_px = 3300;
+  bool try_classic = true;
+  // A grid is refused if cornerSubPix moves a corner by more than this fraction of the local
+  // square size (the detector latched on something else), or if a corner deviates from the
+  // average of its neighbours' prediction by more than this fraction (not a grid).
+  double max_refine_shift_squares = 0.35;
+  double max_grid_irregularity_squares = 0.25;
   std::string Validate() const;
+};
+
+// One detector's try on one board (for diagnostics: msmcal solve --explain).
+struct BoardAttempt {
+  BoardMethod method = BoardMethod::kSbCoarse;
+  double scale = 1.0;     // image scale the detector ran on
+  bool found = false;     // the detector returned a grid
+  bool accepted = false;  // and it passed the geometric check
+  std::string note;       // why a found grid was refused
 };
 
 struct CheckerboardDetection {
@@ -34,14 +62,16 @@ struct CheckerboardDetection {
   // Half size of the square window the sub-pixel refinement read around each corner: a bright
   // spot (laser dot) reaching into it biases that corner (up to 1.6 px on the simulator).
   int refine_half_window_px = 0;
+  BoardMethod method = BoardMethod::kSbCoarse;  // the detector that found the board
+  double square_px = 0;  // median distance between neighbouring corners, pixels
 };
 
 // Finds one board of exactly `size` in `image` (8/16-bit, 1 or 3 channels). `mask` (optional,
 // CV_8U, same size, nonzero = usable) hides regions such as an already found board. Empty when
-// not found.
-std::optional<CheckerboardDetection> DetectCheckerboard(const cv::Mat& image, BoardSize size,
-                                                        const CheckerboardOptions& options = {},
-                                                        const cv::Mat& mask = cv::Mat());
+// not found. `attempts` (optional) receives every detector's try, in order.
+std::optional<CheckerboardDetection> DetectCheckerboard(
+    const cv::Mat& image, BoardSize size, const CheckerboardOptions& options = {},
+    const cv::Mat& mask = cv::Mat(), std::vector<BoardAttempt>* attempts = nullptr);
 
 // Flags (1) the corners of `board` whose refinement window no bright spot reached. A spot is
 // given by its blob's bounding box (pixels above the dot threshold); its light reaches 3 px
@@ -52,9 +82,11 @@ std::vector<char> CornersClearOfSpots(const CheckerboardDetection& board,
 
 // Finds several boards of different sizes in one image: the one with more corners first, then the
 // others with the found boards masked out. Result i corresponds to sizes[i].
+// `attempts` (optional): per size, as DetectCheckerboard's.
 std::vector<std::optional<CheckerboardDetection>> DetectCheckerboards(
     const cv::Mat& image, const std::vector<BoardSize>& sizes,
-    const CheckerboardOptions& options = {});
+    const CheckerboardOptions& options = {},
+    std::vector<std::vector<BoardAttempt>>* attempts = nullptr);
 
 // Reorders a grid of corners (row-major rows x cols, as OpenCV returns them) into the canonical
 // order using the handedness in the image and the colour of the outer squares in `gray` (8-bit).

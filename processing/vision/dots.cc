@@ -167,7 +167,7 @@ std::vector<FitPixel> WindowPixels(const cv::Mat& signal_image, const cv::Mat& o
 // read from `original`.
 template <typename T>
 std::vector<Dot> Detect(const cv::Mat& image, const cv::Mat& original, cv::Mat1b& candidates,
-                        const DotOptions& o, DotRejections* rej) {
+                        const DotOptions& o, DotRejections* rej, std::vector<DotCandidate>* seen) {
   const int full = sizeof(T) == 1 ? 255 : 65535;
   const int w = image.cols, h = image.rows;
   std::vector<std::pair<int, int>> stack;
@@ -197,19 +197,25 @@ std::vector<Dot> Detect(const cv::Mat& image, const cv::Mat& original, cv::Mat1b
         // Weight = signal (the top-hat has already removed the background in mono images).
         const double s = r[cx];
         ++acc.n;
-        if (original.ptr<T>(cy)[cx] >= full) ++acc.saturated;
-        acc.peak = std::max(acc.peak, s);
-        acc.sw += s;
-        acc.sw2 += s * s;
-        acc.sx += s * cx;
-        acc.sy += s * cy;
-        acc.sxx += s * cx * cx;
-        acc.sxy += s * cx * cy;
-        acc.syy += s * cy * cy;
-        if (acc.n == 1) acc.x0 = acc.x1 = cx, acc.y0 = acc.y1 = cy;
-        acc.x0 = std::min(acc.x0, cx), acc.x1 = std::max(acc.x1, cx);
-        acc.y0 = std::min(acc.y0, cy), acc.y1 = std::max(acc.y1, cy);
-        if (acc.n > o.max_pixels + 1) continue;  // stop growing; rejected below anyway
+        // Past max_pixels + 1 the blob is refused anyway: keep flooding (so that no fragment of
+        // it is scanned again as a blob of its own) but stop accumulating.
+        if (acc.n > o.max_pixels + 1) {
+          acc.x0 = std::min(acc.x0, cx), acc.x1 = std::max(acc.x1, cx);
+          acc.y0 = std::min(acc.y0, cy), acc.y1 = std::max(acc.y1, cy);
+        } else {
+          if (original.ptr<T>(cy)[cx] >= full) ++acc.saturated;
+          acc.peak = std::max(acc.peak, s);
+          acc.sw += s;
+          acc.sw2 += s * s;
+          acc.sx += s * cx;
+          acc.sy += s * cy;
+          acc.sxx += s * cx * cx;
+          acc.sxy += s * cx * cy;
+          acc.syy += s * cy * cy;
+          if (acc.n == 1) acc.x0 = acc.x1 = cx, acc.y0 = acc.y1 = cy;
+          acc.x0 = std::min(acc.x0, cx), acc.x1 = std::max(acc.x1, cx);
+          acc.y0 = std::min(acc.y0, cy), acc.y1 = std::max(acc.y1, cy);
+        }
         for (int dy = -1; dy <= 1; ++dy) {
           const int ny = cy + dy;
           if (ny < 0 || ny >= h) continue;
@@ -222,16 +228,30 @@ std::vector<Dot> Detect(const cv::Mat& image, const cv::Mat& original, cv::Mat1b
           }
         }
       }
+      DotCandidate cand;
+      cand.box = cv::Rect(acc.x0, acc.y0, acc.x1 - acc.x0 + 1, acc.y1 - acc.y0 + 1);
+      cand.centroid_px = Eigen::Vector2d(acc.sx / acc.sw, acc.sy / acc.sw);
+      cand.num_pixels = acc.n;
+      cand.peak = acc.peak;
+      cand.saturated_pixels = acc.saturated;
+      auto refuse = [&](int* counter, std::string why) {
+        ++*counter;
+        if (!seen) return;
+        cand.reason = std::move(why);
+        seen->push_back(cand);
+      };
       if (acc.n < o.min_pixels) {
-        ++local.too_small;
+        refuse(&local.too_small, "too small: " + std::to_string(acc.n) + " px < dots.min_pixels " +
+                                     std::to_string(o.min_pixels));
         continue;
       }
       if (acc.n > o.max_pixels) {
-        ++local.too_large;
+        refuse(&local.too_large, "too large: > dots.max_pixels " + std::to_string(o.max_pixels));
         continue;
       }
       if (acc.saturated > o.max_saturated_fraction * acc.n) {
-        ++local.saturated;
+        refuse(&local.saturated, "saturated: " + std::to_string(acc.saturated) + " of " +
+                                     std::to_string(acc.n) + " px > dots.max_saturated_fraction");
         continue;
       }
       Dot dot;
@@ -245,8 +265,11 @@ std::vector<Dot> Detect(const cv::Mat& image, const cv::Mat& original, cv::Mat1b
       scatter += Eigen::Matrix2d::Identity() / 12.0;
       const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> es(scatter);
       const double l0 = std::max(es.eigenvalues()(0), 1e-12);
-      if (std::sqrt(es.eigenvalues()(1) / l0) > o.max_elongation) {
-        ++local.elongated;
+      cand.elongation = std::sqrt(es.eigenvalues()(1) / l0);
+      if (cand.elongation > o.max_elongation) {
+        std::ostringstream why;
+        why << "elongated: " << cand.elongation << " > dots.max_elongation " << o.max_elongation;
+        refuse(&local.elongated, why.str());
         continue;
       }
       // Effective number of samples of a weighted mean.
@@ -266,6 +289,11 @@ std::vector<Dot> Detect(const cv::Mat& image, const cv::Mat& original, cv::Mat1b
           dot = fit;
         else
           ++local.fit_fallbacks;
+      }
+      if (seen) {
+        cand.kept = true;
+        cand.reason = dot.fitted ? "kept (Gaussian fit)" : "kept (weighted centroid)";
+        seen->push_back(cand);
       }
       dots.push_back(dot);
     }
@@ -302,7 +330,7 @@ std::string DotOptions::Validate() const {
 }
 
 std::vector<Dot> DetectDots(const cv::Mat& image, const DotOptions& options,
-                            DotRejections* rejections) {
+                            DotRejections* rejections, std::vector<DotCandidate>* candidates_out) {
   if (const std::string err = options.Validate(); !err.empty())
     throw std::invalid_argument("DotOptions: " + err);
   if (image.type() != CV_8UC1 && image.type() != CV_8UC3 && image.type() != CV_16UC1 &&
@@ -341,9 +369,10 @@ std::vector<Dot> DetectDots(const cv::Mat& image, const DotOptions& options,
   // Pixels at or above the threshold: the flood fill's seeds and extent.
   cv::compare(signal, threshold, candidates, cv::CMP_GE);
   DotRejections local;
-  std::vector<Dot> dots = mono.depth() == CV_8U
-                              ? Detect<uint8_t>(signal, mono, candidates, options, &local)
-                              : Detect<uint16_t>(signal, mono, candidates, options, &local);
+  std::vector<Dot> dots =
+      mono.depth() == CV_8U
+          ? Detect<uint8_t>(signal, mono, candidates, options, &local, candidates_out)
+          : Detect<uint16_t>(signal, mono, candidates, options, &local, candidates_out);
   if (bgr) {
     const int min_excess = static_cast<int>(std::lround(options.min_green_excess_fraction * full));
     std::vector<Dot> green_dots;
@@ -353,10 +382,18 @@ std::vector<Dot> DetectDots(const cv::Mat& image, const DotOptions& options,
         for (int x = d.blob_box.x; x < d.blob_box.x + d.blob_box.width; ++x)
           best = std::max(best, image.depth() == CV_8U ? GreenExcess(image.ptr<uint8_t>(y), x)
                                                        : GreenExcess(image.ptr<uint16_t>(y), x));
-      if (best >= min_excess)
+      if (best >= min_excess) {
         green_dots.push_back(d);
-      else
+      } else {
         ++local.not_green;
+        if (candidates_out)
+          for (auto& c : *candidates_out)
+            if (c.kept && c.box == d.blob_box) {
+              c.kept = false;
+              c.reason = "not green: green - max(blue, red) peaks at " + std::to_string(best) +
+                         " < dots.min_green_excess_fraction of full scale";
+            }
+      }
     }
     dots = std::move(green_dots);
   }

@@ -48,9 +48,11 @@ struct DotOptions {
   double threshold_fraction = 0.15;
   int min_pixels = 12;   // smaller blobs are noise or board-corner residue
   int max_pixels = 400;  // larger blobs are reflections / board squares, not a dot
-  // Ratio of the scatter's principal std devs. Laser spots are round (<= 1.2 in the simulator even
-  // on oblique boards); checkerboard X-junction residue of the top-hat is >= 1.4.
-  double max_elongation = 1.3;
+  // Ratio of the scatter's principal std devs, in the image. Loose by default: a round spot on a
+  // plate tilted 60 deg to the camera is 2x elongated in the image; checkerboard X-junction
+  // residue of the top-hat is mostly 3-7x. The solver checks roundness again in the board's own
+  // plane (PipelineOptions::max_surface_elongation) and refuses elongated blobs at corners.
+  double max_elongation = 3.0;
   // Fraction of a blob's pixels allowed at full scale (saturated) before it is rejected. The
   // Gaussian fit places a clipped spot by its flanks (below threshold too), so the default keeps
   // them all: a spot on a light square is a saturated plateau in the top-hat, 80-95 % of its
@@ -79,10 +81,25 @@ struct DotRejections {
   int fit_fallbacks = 0;  // kept dots whose Gaussian fit was not used (centroid kept)
 };
 
+// Every blob the detector looked at, with its fate (msmcal solve --explain).
+struct DotCandidate {
+  cv::Rect box;
+  Eigen::Vector2d centroid_px = Eigen::Vector2d::Zero();
+  int num_pixels = 0;
+  double peak = 0;
+  double elongation = 1;
+  int saturated_pixels = 0;
+  bool kept = false;
+  std::string reason;  // why it was refused, or how it was measured
+};
+
 // All dots of an image, ordered by row of their first pixel (raster order). Throws
-// std::invalid_argument for unsupported image types.
+// std::invalid_argument for unsupported image types. `candidates` (optional) receives every
+// blob above the threshold with its fate (the flood fill stops growing a blob past
+// max_pixels + 1).
 std::vector<Dot> DetectDots(const cv::Mat& image, const DotOptions& options = {},
-                            DotRejections* rejections = nullptr);
+                            DotRejections* rejections = nullptr,
+                            std::vector<DotCandidate>* candidates = nullptr);
 
 // ---- Refinement over a background measured in other images ----
 // In a series of images of one static scene (camera and boards fixed, the laser dots moving

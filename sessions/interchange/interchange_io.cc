@@ -10,6 +10,7 @@
 #include <cmath>
 #include <cstring>
 #include <fstream>
+#include <limits>
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <set>
@@ -63,20 +64,19 @@ std::string_view Trim(std::string_view s) {
   return s;
 }
 
-// Strict number parsing: the whole text must be consumed.
+// Strict number parsing: the whole text must be consumed, and the value must be finite (the
+// interchange format refuses nan and inf in every spelling: "nan", "inf", ".inf", "1e999").
 bool ParseDouble(std::string_view s, double* out) {
   s = Trim(s);
   if (!s.empty() && s.front() == '+') s.remove_prefix(1);
   if (s.empty()) return false;
-  // YAML spellings of the special values.
-  if (s == ".inf" || s == ".Inf" || s == ".INF") return *out = INFINITY, true;
-  if (s == "-.inf" || s == "-.Inf" || s == "-.INF") return *out = -INFINITY, true;
-  if (s == ".nan" || s == ".NaN" || s == ".NAN") return *out = NAN, true;
   const char* end = s.data() + s.size();
   auto [ptr, ec] = std::from_chars(s.data(), end, *out);
-  return ec == std::errc() && ptr == end;
+  return ec == std::errc() && ptr == end && std::isfinite(*out);
 }
 
+// Integers: the whole text must be an integer, or a decimal number with an integral value
+// ("3", "3.0", "3e0"; every number in the format is a decimal number).
 template <typename Int>
 bool ParseInt(std::string_view s, Int* out) {
   s = Trim(s);
@@ -84,7 +84,28 @@ bool ParseInt(std::string_view s, Int* out) {
   if (s.empty()) return false;
   const char* end = s.data() + s.size();
   auto [ptr, ec] = std::from_chars(s.data(), end, *out);
-  return ec == std::errc() && ptr == end;
+  if (ec == std::errc() && ptr == end) return true;
+  double d;
+  if (!ParseDouble(s, &d) || d != std::floor(d)) return false;
+  if (d < static_cast<double>(std::numeric_limits<Int>::min()) ||
+      d > static_cast<double>(std::numeric_limits<Int>::max()))
+    return false;
+  *out = static_cast<Int>(d);
+  return true;
+}
+
+// Why `s` is not a number: names the non-finite case, which the format forbids explicitly.
+std::string NotANumber(std::string_view s) {
+  s = Trim(s);
+  double v;
+  const char* end = s.data() + s.size();
+  auto [ptr, ec] = std::from_chars(s.data() + (!s.empty() && s.front() == '+'), end, v);
+  const bool non_finite = (ptr == end && ((ec == std::errc() && !std::isfinite(v)) ||
+                                          ec == std::errc::result_out_of_range)) ||
+                          s == ".inf" || s == "-.inf" || s == ".nan" || s == ".Inf" ||
+                          s == "-.Inf" || s == ".NaN" || s == ".INF" || s == "-.INF" || s == ".NAN";
+  return Quote(s) + (non_finite ? " is not a finite number (nan and inf are not allowed)"
+                                : " is not a number");
 }
 
 void AppendDouble(std::string* out, double v) { common::AppendShortestDouble(out, v); }
@@ -158,8 +179,7 @@ class CsvReader {
   double Double(size_t i) const {
     double v;
     if (!ParseDouble(cells_[i], &v)) {
-      Fail(display_, line_,
-           "column " + Quote(columns_[i]) + ": " + Quote(Trim(cells_[i])) + " is not a number");
+      Fail(display_, line_, "column " + Quote(columns_[i]) + ": " + NotANumber(cells_[i]));
     }
     return v;
   }
@@ -220,24 +240,30 @@ std::vector<dataset::HallReading> ReadHallReadings(const fs::path& path,
   std::vector<dataset::HallReading> out;
   while (csv.Next()) {
     dataset::HallReading r;
-    r.mcu_time_us = csv.Integer<int64_t>(0);
+    r.mcu_time_us = csv.Double(0);
     r.bx_uT = csv.Double(1);
     r.by_uT = csv.Double(2);
     r.bz_uT = csv.Double(3);
+    if (!out.empty() && r.mcu_time_us <= out.back().mcu_time_us) {
+      Fail(display, csv.line(),
+           "column 'mcu_time_us': readings must be in strictly increasing time, got " +
+               common::ShortestDouble(r.mcu_time_us) + " after " +
+               common::ShortestDouble(out.back().mcu_time_us));
+    }
     out.push_back(r);
   }
   return out;
 }
 
-std::vector<int64_t> ReadClockEdges(const fs::path& path, const std::string& display) {
+std::vector<double> ReadClockEdges(const fs::path& path, const std::string& display) {
   CsvReader csv(path, display, {kClockHeader});
-  std::vector<int64_t> out;
+  std::vector<double> out;
   while (csv.Next()) {
-    const int64_t t = csv.Integer<int64_t>(0);
+    const double t = csv.Double(0);
     if (!out.empty() && t <= out.back()) {
       Fail(display, csv.line(),
            "column 'mcu_time_us': clock edges must be strictly ascending, got " +
-               std::to_string(t) + " after " + std::to_string(out.back()));
+               common::ShortestDouble(t) + " after " + common::ShortestDouble(out.back()));
     }
     out.push_back(t);
   }
@@ -294,7 +320,7 @@ std::string FormatHallReadings(const std::vector<dataset::HallReading>& readings
   std::string out = std::string(kHallHeader) + "\n";
   out.reserve(out.size() + readings.size() * 48);
   for (const auto& r : readings) {
-    AppendInt(&out, r.mcu_time_us);
+    AppendDouble(&out, r.mcu_time_us);
     out += ',';
     AppendDouble(&out, r.bx_uT);
     out += ',';
@@ -306,10 +332,10 @@ std::string FormatHallReadings(const std::vector<dataset::HallReading>& readings
   return out;
 }
 
-std::string FormatClockEdges(const std::vector<int64_t>& edges) {
+std::string FormatClockEdges(const std::vector<double>& edges) {
   std::string out = std::string(kClockHeader) + "\n";
-  for (int64_t t : edges) {
-    AppendInt(&out, t);
+  for (double t : edges) {
+    AppendDouble(&out, t);
     out += '\n';
   }
   return out;
@@ -393,7 +419,7 @@ class YamlReader {
   double AsDouble(const YAML::Node& n, const std::string& path) const {
     const std::string s = Scalar(n, path, "a number");
     double v;
-    if (!ParseDouble(s, &v)) FailAt(n, path, "expected a number, got " + Quote(s));
+    if (!ParseDouble(s, &v)) FailAt(n, path, "expected a finite number, got " + NotANumber(s));
     return v;
   }
   int Int(const YAML::Node& map, const std::string& key, const std::string& field) const {
@@ -899,7 +925,7 @@ std::string CheckRecording(const dataset::Recording& r) {
   return problem;
 }
 
-dataset::Recording ReadRecording(const std::filesystem::path& dir) {
+dataset::Recording ReadRecording(const std::filesystem::path& dir, ReadParts parts) {
   dataset::Recording rec;
   ParseSession(ReadWholeFile(dir / "session.yaml", "session.yaml"), "session.yaml", &rec);
   rec.camera = ParseCamera(ReadWholeFile(dir / "camera.yaml", "camera.yaml"), "camera.yaml");
@@ -922,22 +948,23 @@ dataset::Recording ReadRecording(const std::filesystem::path& dir) {
   }
 
   std::error_code ec;
-  if (fs::exists(dir / "hall/actual.csv", ec) || fs::exists(dir / "hall/actual_clock.csv", ec)) {
+  if (parts.hall &&
+      (fs::exists(dir / "hall/actual.csv", ec) || fs::exists(dir / "hall/actual_clock.csv", ec))) {
     rec.hall_actual = ReadHall(dir / "hall/actual.csv", "hall/actual.csv",
                                dir / "hall/actual_clock.csv", "hall/actual_clock.csv");
   }
-  if (fs::exists(dir / "hall/background.csv", ec) ||
-      fs::exists(dir / "hall/background_clock.csv", ec)) {
+  if (parts.hall && (fs::exists(dir / "hall/background.csv", ec) ||
+                     fs::exists(dir / "hall/background_clock.csv", ec))) {
     rec.hall_background = ReadHall(dir / "hall/background.csv", "hall/background.csv",
                                    dir / "hall/background_clock.csv", "hall/background_clock.csv");
   }
-  if (fs::exists(dir / "marg/plane_rotation.csv", ec)) {
+  if (parts.marg && fs::exists(dir / "marg/plane_rotation.csv", ec)) {
     rec.marg_plane_rotation = ReadMarg(dir / "marg/plane_rotation.csv", "marg/plane_rotation.csv");
   }
-  if (fs::exists(dir / "marg/free_rotation.csv", ec)) {
+  if (parts.marg && fs::exists(dir / "marg/free_rotation.csv", ec)) {
     rec.marg_free_rotation = ReadMarg(dir / "marg/free_rotation.csv", "marg/free_rotation.csv");
   }
-  if (fs::exists(dir / "marg/validation.csv", ec)) {
+  if (parts.marg && fs::exists(dir / "marg/validation.csv", ec)) {
     rec.marg_validation = ReadMarg(dir / "marg/validation.csv", "marg/validation.csv");
   }
   return rec;

@@ -33,7 +33,16 @@ class InterchangeError : public std::runtime_error {
 // Reads session.yaml, camera.yaml, the hall/ CSVs and the marg/ CSVs that exist. Checks that
 // every referenced image exists (does not decode it). Hall files are optional as a pair
 // (actual.csv needs actual_clock.csv); marg files are optional each.
-dataset::Recording ReadRecording(const std::filesystem::path& dir);
+// What of a folder a tool needs (a problem in a file a command does not use is not its error).
+struct ReadParts {
+  bool hall = true;  // hall/*.csv
+  bool marg = true;  // marg/*.csv
+};
+dataset::Recording ReadRecording(const std::filesystem::path& dir, ReadParts parts = {});
+// What `msmcal solve` needs: session.yaml, camera.yaml and the images, never hall/ or marg/.
+inline dataset::Recording ReadRecordingForSolve(const std::filesystem::path& dir) {
+  return ReadRecording(dir, ReadParts{/*hall=*/false, /*marg=*/false});
+}
 
 // Writes session.yaml, camera.yaml and the hall/ and marg/ CSVs present in `recording`.
 // Images are not written here (see WriteImage); existing files are replaced atomically

@@ -16,8 +16,16 @@
 
 namespace msmcal::orchestrator {
 
+// The gate counts dots in the image without the solver's board-plane roundness check, so it
+// keeps the strict image-space roundness (laser spots <= 1.2 on the simulated rig).
+inline vision::DotOptions GateDotOptions() {
+  vision::DotOptions o;
+  o.max_elongation = 1.3;
+  return o;
+}
+
 struct GateOptions {
-  vision::DotOptions dots;
+  vision::DotOptions dots = GateDotOptions();
   vision::CheckerboardOptions boards;
   // Largest fraction of all pixels at full scale (sensor saturation beyond use).
   double max_saturated_pixel_fraction = 0.01;

@@ -10,6 +10,7 @@
 #include <nlohmann/json.hpp>
 #include <set>
 
+#include "common/text_io.h"
 #include "sessions/interchange/interchange_io.h"
 
 namespace msmcal::store {
@@ -593,13 +594,13 @@ void SessionStore::AppendHallReadings(const std::string& name,
   tx.Commit();
 }
 
-void SessionStore::AppendClockEdges(const std::string& name, const std::vector<int64_t>& edges) {
+void SessionStore::AppendClockEdges(const std::string& name, const std::vector<double>& edges) {
   std::lock_guard lock(impl_->mutex);
   impl_->CheckWritable();
   if (edges.empty()) return;
   Transaction tx(impl_->db, impl_->dir);
   int64_t seq = 0;
-  std::optional<int64_t> last;
+  std::optional<double> last;
   {
     Statement s(impl_->db,
                 "SELECT seq, mcu_time_us FROM clock_edges WHERE recording = ? "
@@ -608,15 +609,15 @@ void SessionStore::AppendClockEdges(const std::string& name, const std::vector<i
     s.Bind(1, name);
     if (s.Step()) {
       seq = s.Int(0) + 1;
-      last = s.Int(1);
+      last = s.Double(1);
     }
   }
   Statement s(impl_->db, "INSERT INTO clock_edges(recording, seq, mcu_time_us) VALUES (?, ?, ?)",
               impl_->dir);
-  for (int64_t t : edges) {
+  for (double t : edges) {
     if (last && t <= *last) {
       Fail(impl_->dir, "clock edges of '" + name + "' must be strictly ascending: " +
-                           std::to_string(t) + " after " + std::to_string(*last));
+                           common::ShortestDouble(t) + " after " + common::ShortestDouble(*last));
     }
     last = t;
     s.Bind(1, name).Bind(2, seq++).Bind(3, t).Run();
@@ -633,17 +634,17 @@ std::vector<dataset::HallReading> SessionStore::HallReadings(const std::string& 
               impl_->dir);
   s.Bind(1, name);
   std::vector<dataset::HallReading> out;
-  while (s.Step()) out.push_back({s.Int(0), s.Double(1), s.Double(2), s.Double(3)});
+  while (s.Step()) out.push_back({s.Double(0), s.Double(1), s.Double(2), s.Double(3)});
   return out;
 }
 
-std::vector<int64_t> SessionStore::ClockEdges(const std::string& name) const {
+std::vector<double> SessionStore::ClockEdges(const std::string& name) const {
   std::lock_guard lock(impl_->mutex);
   Statement s(impl_->db, "SELECT mcu_time_us FROM clock_edges WHERE recording = ? ORDER BY seq",
               impl_->dir);
   s.Bind(1, name);
-  std::vector<int64_t> out;
-  while (s.Step()) out.push_back(s.Int(0));
+  std::vector<double> out;
+  while (s.Step()) out.push_back(s.Double(0));
   return out;
 }
 

@@ -169,9 +169,9 @@ class SessionStore {
   // Appends readings of Hall recording `name` ("actual", "background", ...) in one transaction.
   void AppendHallReadings(const std::string& name,
                           const std::vector<dataset::HallReading>& readings);
-  void AppendClockEdges(const std::string& name, const std::vector<int64_t>& edges_us);
+  void AppendClockEdges(const std::string& name, const std::vector<double>& edges_us);
   std::vector<dataset::HallReading> HallReadings(const std::string& name) const;
-  std::vector<int64_t> ClockEdges(const std::string& name) const;
+  std::vector<double> ClockEdges(const std::string& name) const;
   std::vector<std::string> HallRecordingNames() const;
 
   // results/ files verbatim, by name relative to results/ ("mirror_planes.csv").

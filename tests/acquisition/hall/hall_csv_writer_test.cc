@@ -61,7 +61,7 @@ TEST(HallCsvWriter, WritesInterchangeColumnsLosslesslyAndIncrementally) {
     EXPECT_EQ(back.readings[i].by_uT, batch.readings[i].by_uT);
     EXPECT_EQ(back.readings[i].bz_uT, batch.readings[i].bz_uT);
   }
-  EXPECT_EQ(back.clock_edges_us, (std::vector<int64_t>{500, 50500}));
+  EXPECT_EQ(back.clock_edges_us, (std::vector<double>{500, 50500}));
 }
 
 TEST(HallCsvWriter, ReadingsAfterAnMcuResetGoToTheirOwnFiles) {

@@ -1,5 +1,4 @@
 #include "sessions/interchange/interchange_io.h"
-#include "tests/testing/test_files.h"
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
@@ -14,6 +13,8 @@
 #include <opencv2/imgcodecs.hpp>
 #include <random>
 #include <sstream>
+
+#include "tests/testing/test_files.h"
 
 namespace msmcal::interchange {
 namespace {
@@ -102,10 +103,12 @@ dataset::MargRecording RandomMarg(Doubles& d, bool inertial, int n) {
 
 dataset::HallRecording RandomHall(Doubles& d, int n) {
   dataset::HallRecording h;
-  int64_t t = -5000;
+  // Times are strictly increasing decimal microseconds (interchange-format.md), with fractions.
+  double t = -5000, tr = d.Int(-100000, 100000) + d.Int(0, 999) / 1000.0;
   for (int i = 0; i < n; ++i) {
-    h.readings.push_back({d.Int64(), d.Next(), d.Next(), d.Next()});
-    t += d.Int(1, 100000);
+    tr += d.Int(1, 2000) + d.Int(0, 999) / 1000.0;
+    h.readings.push_back({tr, d.Next(), d.Next(), d.Next()});
+    t += d.Int(1, 100000) + d.Int(0, 999) / 1000.0;
     h.clock_edges_us.push_back(t);
   }
   return h;
@@ -370,7 +373,7 @@ step2:
   EXPECT_EQ(r.step2[1].triggers, (std::vector<int>{0, 1}));
   ASSERT_TRUE(r.hall_actual);
   EXPECT_EQ(r.hall_actual->readings[0].bz_uT, 300);
-  EXPECT_EQ(r.hall_actual->clock_edges_us, (std::vector<int64_t>{5, 50005}));
+  EXPECT_EQ(r.hall_actual->clock_edges_us, (std::vector<double>{5, 50005}));
   EXPECT_FALSE(r.hall_background);
   EXPECT_FALSE(r.marg_free_rotation);
 }
@@ -441,10 +444,30 @@ TEST_F(InterchangeErrorTest, NonNumericCell) {
               HasSubstr("hall/background.csv:4: column 'by_uT': 'abc' is not a number"));
 }
 
-TEST_F(InterchangeErrorTest, NonIntegerTime) {
-  Spit(dir_ / "hall/actual.csv", "mcu_time_us,bx_uT,by_uT,bz_uT\n1,2,3,4\n1.5,2,3,4\n");
-  EXPECT_THAT(ReadError(),
-              HasSubstr("hall/actual.csv:3: column 'mcu_time_us': '1.5' is not an integer"));
+TEST_F(InterchangeErrorTest, FractionalTimesAreKept) {
+  Spit(dir_ / "hall/actual.csv",
+       "mcu_time_us,bx_uT,by_uT,bz_uT\n8999999.609,2,3,4\n9000999.6094,2,3,4\n");
+  Spit(dir_ / "hall/actual_clock.csv", "mcu_time_us\n8999000.5\n9199000.25\n");
+  const auto r = ReadRecording(dir_);
+  ASSERT_TRUE(r.hall_actual);
+  EXPECT_EQ(r.hall_actual->readings[0].mcu_time_us, 8999999.609);
+  EXPECT_EQ(r.hall_actual->readings[1].mcu_time_us, 9000999.6094);
+  EXPECT_EQ(r.hall_actual->clock_edges_us, (std::vector<double>{8999000.5, 9199000.25}));
+}
+
+TEST_F(InterchangeErrorTest, NonIncreasingReadingTime) {
+  Spit(dir_ / "hall/actual.csv", "mcu_time_us,bx_uT,by_uT,bz_uT\n1,2,3,4\n2.5,2,3,4\n2.5,2,3,4\n");
+  EXPECT_THAT(ReadError(), HasSubstr("hall/actual.csv:4: column 'mcu_time_us': readings must be "
+                                     "in strictly increasing time, got 2.5 after 2.5"));
+}
+
+TEST_F(InterchangeErrorTest, NonFiniteNumbersAreRefused) {
+  for (const std::string bad : {"nan", "inf", "-inf", "NaN", ".inf", "1e999"}) {
+    Spit(dir_ / "hall/actual.csv", "mcu_time_us,bx_uT,by_uT,bz_uT\n1,2,3,4\n2,2," + bad + ",4\n");
+    EXPECT_THAT(ReadError(), HasSubstr("hall/actual.csv:3: column 'by_uT': '" + bad +
+                                       "' is not a finite number"))
+        << bad;
+  }
 }
 
 TEST_F(InterchangeErrorTest, WrongNumberOfCells) {

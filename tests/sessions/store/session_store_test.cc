@@ -170,7 +170,7 @@ TEST(SessionStoreTest, EverythingWrittenReadsBackAfterReopen) {
     EXPECT_TRUE(Same(hall[i].by_uT, want.by_uT));
     EXPECT_TRUE(Same(hall[i].bz_uT, want.bz_uT)) << i;
   }
-  EXPECT_EQ(store->ClockEdges("actual"), (std::vector<int64_t>{10, 20, 30}));
+  EXPECT_EQ(store->ClockEdges("actual"), (std::vector<double>{10, 20, 30}));
   EXPECT_EQ(store->HallRecordingNames(), (std::vector<std::string>{"actual"}));
   EXPECT_EQ(*store->GetResult("summary.json"), R"({"rms_px": 0.25})");
   EXPECT_EQ(store->AttachmentPaths(), (std::vector<std::string>{"marg/validation.csv"}));
@@ -292,7 +292,7 @@ constexpr int kBatch = 100;
     std::vector<dataset::HallReading> batch;
     for (int k = 0; k < kBatch; ++k) batch.push_back(ReadingAt(int64_t{i} * kBatch + k));
     store->AppendHallReadings("actual", batch);
-    store->AppendClockEdges("actual", {int64_t{i} * 50000});
+    store->AppendClockEdges("actual", {i * 50000.0});
     if (i % 3 == 0) {
       FrameRecord f;
       f.step = "step2";

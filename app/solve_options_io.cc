@@ -1,0 +1,221 @@
+#include "app/solve_options_io.h"
+
+#include <yaml-cpp/yaml.h>
+
+#include <cmath>
+#include <fstream>
+#include <functional>
+#include <set>
+#include <sstream>
+#include <stdexcept>
+#include <variant>
+#include <vector>
+
+#include "common/text_io.h"
+
+namespace msmcal::app {
+namespace {
+
+using Ref = std::variant<double*, int*, bool*, uint64_t*, vision::DotCentre*>;
+
+struct Knob {
+  std::string key;  // "dots.min_pixels"
+  Ref ref;
+  std::string help;
+};
+
+// The one table of knobs: reading and writing both walk it.
+std::vector<Knob> Knobs(solver::PipelineOptions& o) {
+  return {
+      {"image_threads", &o.image_threads,
+       "images measured in parallel (results do not depend on it)"},
+      {"average_exposures", &o.average_exposures,
+       "average repeated exposures of one static scene before measuring"},
+      {"seed", &o.seed, "seed of the trigger-assignment RANSAC"},
+      {"dots.threshold_fraction", &o.dots.threshold_fraction,
+       "spot signal threshold, fraction of full scale (after the top-hat)"},
+      {"dots.min_pixels", &o.dots.min_pixels, "smallest blob (pixels above threshold) kept"},
+      {"dots.max_pixels", &o.dots.max_pixels, "largest blob kept"},
+      {"dots.max_elongation", &o.dots.max_elongation,
+       "largest ratio of a blob's principal std devs in the image"},
+      {"dots.max_saturated_fraction", &o.dots.max_saturated_fraction,
+       "largest fraction of a blob's pixels at full scale"},
+      {"dots.background_kernel_px", &o.dots.background_kernel_px,
+       "top-hat kernel (odd px; larger than a spot, smaller than a square; 0: raw signal)"},
+      {"dots.min_green_excess_fraction", &o.dots.min_green_excess_fraction,
+       "BGR: least green - max(blue, red) of a laser blob, fraction of full scale"},
+      {"dots.centre", &o.dots.centre, "gaussian_fit or weighted_centroid"},
+      {"dots.fit_margin_px", &o.dots.fit_margin_px, "Gaussian fit window: blob box grown by this"},
+      {"dots.max_fit_shift_px", &o.dots.max_fit_shift_px,
+       "a fit moving the centre further than this keeps the centroid"},
+      {"dots.background_mask_margin_px", &o.dots.background_mask_margin_px,
+       "other images' dots masked with their box grown by this (background refit)"},
+      {"boards.coarse_max_side_px", &o.boards.coarse_max_side_px,
+       "coarse board search on an image of at most this longer side"},
+      {"boards.try_sb_full", &o.boards.try_sb_full,
+       "fallback: findChessboardCornersSB at full resolution"},
+      {"boards.try_classic", &o.boards.try_classic,
+       "fallback: classic findChessboardCorners (adaptive threshold) + cornerSubPix"},
+      {"boards.try_sb_upscaled", &o.boards.try_sb_upscaled, "fallback: SB on a 2x upscaled copy"},
+      {"boards.upscale_max_side_px", &o.boards.upscale_max_side_px,
+       "the upscaled fallback only where the upscaled longer side stays below this"},
+      {"boards.max_refine_shift_squares", &o.boards.max_refine_shift_squares,
+       "refuse a grid whose sub-pixel refinement moves a corner more than this (squares)"},
+      {"boards.max_grid_irregularity_squares", &o.boards.max_grid_irregularity_squares,
+       "refuse a grid with a corner this far off its neighbours' line (squares)"},
+      {"step1_dot_margin_squares", &o.step1_dot_margin_squares,
+       "step 1 dots: on the sliding plate within this many squares of its pattern"},
+      {"step2_dot_margin_squares", &o.step2_dot_margin_squares,
+       "step 2 dots: on the world plane within this many squares of its pattern"},
+      {"max_surface_elongation", &o.max_surface_elongation,
+       "largest elongation of a spot in the board's own plane"},
+      {"junction_elongation", &o.junction_elongation,
+       "blobs more elongated than this at a square corner are board residue"},
+      {"junction_exclusion_squares", &o.junction_exclusion_squares,
+       "radius around inner corners for that test (squares)"},
+      {"max_surplus_dots", &o.max_surplus_dots,
+       "step 2: extra blobs a frame may have and still be grouped"},
+      {"max_group_residual_px", &o.max_group_residual_px,
+       "worst mean pixel inconsistency of one mirror plane's dots"},
+      {"partial_frame_group_residual_px", &o.partial_frame_group_residual_px,
+       "the same for a frame with dots missing"},
+      {"ransac_iterations", &o.ransac_iterations, "trigger assignment: RANSAC iterations"},
+      {"ransac_inlier_deg", &o.ransac_inlier_deg, "trigger assignment: inlier threshold, deg"},
+      {"mle.max_iterations", &o.mle.max_iterations, "Ceres iterations"},
+      {"mle.estimate_variance_factors", &o.mle.estimate_variance_factors,
+       "rescale each residual family's covariance by its posterior variance factor"},
+      {"mle.variance_passes", &o.mle.variance_passes, "passes of that estimation"},
+  };
+}
+
+[[noreturn]] void Fail(const std::string& path, const YAML::Node& n, const std::string& key,
+                       const std::string& what) {
+  std::ostringstream s;
+  s << path;
+  if (n.Mark().line >= 0) s << ':' << n.Mark().line + 1;
+  s << ": " << key << ": " << what;
+  throw std::runtime_error(s.str());
+}
+
+void Assign(const std::string& path, const YAML::Node& n, const Knob& k) {
+  if (!n.IsScalar()) Fail(path, n, k.key, "expected a scalar");
+  const std::string text = n.Scalar();
+  std::visit(
+      [&](auto* p) {
+        using T = std::remove_pointer_t<decltype(p)>;
+        if constexpr (std::is_same_v<T, bool>) {
+          if (text == "true")
+            *p = true;
+          else if (text == "false")
+            *p = false;
+          else
+            Fail(path, n, k.key, "expected true or false, got '" + text + "'");
+        } else if constexpr (std::is_same_v<T, vision::DotCentre>) {
+          if (text == "gaussian_fit")
+            *p = vision::DotCentre::kGaussianFit;
+          else if (text == "weighted_centroid")
+            *p = vision::DotCentre::kWeightedCentroid;
+          else
+            Fail(path, n, k.key, "expected gaussian_fit or weighted_centroid, got '" + text + "'");
+        } else {
+          size_t used = 0;
+          double v = 0;
+          try {
+            v = std::stod(text, &used);
+          } catch (const std::exception&) {
+            used = 0;
+          }
+          if (used != text.size() || !std::isfinite(v))
+            Fail(path, n, k.key, "expected a finite number, got '" + text + "'");
+          if constexpr (std::is_same_v<T, double>) {
+            *p = v;
+          } else {
+            if (v != std::floor(v) || std::abs(v) > 9e15)
+              Fail(path, n, k.key, "expected an integer, got '" + text + "'");
+            if constexpr (std::is_same_v<T, uint64_t>) {
+              if (v < 0)
+                Fail(path, n, k.key, "expected a non-negative integer, got '" + text + "'");
+            } else {
+              if (std::abs(v) > 2e9) Fail(path, n, k.key, "integer out of range: '" + text + "'");
+            }
+            *p = static_cast<T>(v);
+          }
+        }
+      },
+      k.ref);
+}
+
+void Walk(const std::string& path, const YAML::Node& node, const std::string& prefix,
+          const std::vector<Knob>& knobs, std::set<std::string>* seen) {
+  if (!node.IsMap()) Fail(path, node, prefix.empty() ? "(top level)" : prefix, "expected a map");
+  for (const auto& kv : node) {
+    const std::string key = prefix + kv.first.as<std::string>();
+    if (kv.second.IsMap()) {
+      Walk(path, kv.second, key + ".", knobs, seen);
+      continue;
+    }
+    const auto it =
+        std::find_if(knobs.begin(), knobs.end(), [&](const Knob& k) { return k.key == key; });
+    if (it == knobs.end()) {
+      std::string known;
+      for (const auto& k : knobs) known += (known.empty() ? "" : ", ") + k.key;
+      Fail(path, kv.first, key, "unknown setting (known: " + known + ")");
+    }
+    Assign(path, kv.second, *it);
+    seen->insert(key);
+  }
+}
+
+}  // namespace
+
+solver::PipelineOptions ReadSolveOptions(const std::string& path,
+                                         const solver::PipelineOptions& defaults) {
+  solver::PipelineOptions o = defaults;
+  YAML::Node root;
+  try {
+    root = YAML::LoadFile(path);
+  } catch (const YAML::BadFile&) {
+    throw std::runtime_error(path + ": cannot read the file");
+  } catch (const YAML::Exception& e) {
+    throw std::runtime_error(path + ":" + std::to_string(e.mark.line + 1) + ": " + e.msg);
+  }
+  std::set<std::string> seen;
+  if (!root.IsNull()) Walk(path, root, "", Knobs(o), &seen);
+  if (const std::string e = o.Validate(); !e.empty())
+    throw std::runtime_error(path + ": invalid setting: " + e);
+  return o;
+}
+
+std::string FormatSolveOptions(const solver::PipelineOptions& options) {
+  solver::PipelineOptions o = options;
+  std::ostringstream s;
+  s << "# msmcal solve settings (msmcal solve DIR --config THIS_FILE repeats the run)\n";
+  std::string group;
+  for (const Knob& k : Knobs(o)) {
+    const size_t dot = k.key.find('.');
+    const std::string g = dot == std::string::npos ? "" : k.key.substr(0, dot);
+    const std::string name = dot == std::string::npos ? k.key : k.key.substr(dot + 1);
+    if (g != group) {
+      if (!g.empty()) s << g << ":\n";
+      group = g;
+    }
+    s << (g.empty() ? "" : "  ") << name << ": ";
+    std::visit(
+        [&](auto* p) {
+          using T = std::remove_pointer_t<decltype(p)>;
+          if constexpr (std::is_same_v<T, bool>)
+            s << (*p ? "true" : "false");
+          else if constexpr (std::is_same_v<T, vision::DotCentre>)
+            s << (*p == vision::DotCentre::kGaussianFit ? "gaussian_fit" : "weighted_centroid");
+          else if constexpr (std::is_same_v<T, double>)
+            s << common::YamlDouble(*p);
+          else
+            s << *p;
+        },
+        k.ref);
+    s << "  # " << k.help << "\n";
+  }
+  return s.str();
+}
+
+}  // namespace msmcal::app

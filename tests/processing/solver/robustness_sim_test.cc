@@ -1,0 +1,366 @@
+// Robustness of the solve on images it was not tuned to (issue 15): the project's renderer with
+// its scene drawn at random across spot size and power, board scale, tilt, noise, blur,
+// vignetting, colour balance, mono/BGR, 8/16 bit; a second image model (gamma, another PSF,
+// JPEG compression, vignetting) applied on top; a scene shaped like an independent simulator's
+// (1600 x 1200 BGR, 17 x 12 world board with ~15 px squares, 9 x 6 sliding board, small
+// saturated spots); and spoiled frames, which the solve must survive and name.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <functional>
+#include <map>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+#include <random>
+
+#include "mocks/rig/rig_simulator.h"
+#include "processing/solver/diagnostics.h"
+#include "processing/solver/pipeline.h"
+
+namespace msmcal::solver {
+namespace {
+
+constexpr double kRadToDeg = 180.0 / M_PI;
+
+// A smaller camera (same field of view) so that scenes render and solve fast.
+void ScaleCamera(sim::SimOptions* o, double f) {
+  o->camera.width = static_cast<int>(std::lround(o->camera.width * f));
+  o->camera.height = static_cast<int>(std::lround(o->camera.height * f));
+  o->camera.fx *= f;
+  o->camera.fy *= f;
+  o->camera.cx = 0.5 * (o->camera.width - 1);
+  o->camera.cy = 0.5 * (o->camera.height - 1);
+}
+
+// The scene shaped like the independent simulator's folders of issue 15 (one case of many).
+sim::SimOptions IndependentLikeScene(uint64_t seed) {
+  sim::SimOptions s;
+  s.seed = seed;
+  s.world_board = {17, 12, 15.0};
+  s.sliding_board = {9, 6, 10.0};
+  s.geometry.board_aim_mm = {120, 82};
+  s.geometry.mirror_distance_mm = 200;
+  s.beams.spanning_angle_deg = 30;
+  s.mirror.slow.amplitude_vpp = 2;
+  s.camera.width = 1600;
+  s.camera.height = 1200;
+  s.camera.fx = s.camera.fy = 1250;
+  s.camera.cx = 799.5;
+  s.camera.cy = 599.5;
+  s.camera.c1_centre_mm = {-640, 82, -560};
+  s.camera.c1_target_mm = {60, 82, -150};
+  s.camera.c2_centre_mm = {200, 90, -550};
+  s.camera.c2_target_mm = {120, 82, 0};
+  s.render.dot_sigma_mm = 0.6;
+  s.render.dot_peak = 2.0;
+  s.render.colour = true;
+  s.step1.exposures = 1;
+  return s;
+}
+
+struct SolveRun {
+  std::unique_ptr<sim::RigSimulator> sim;
+  dataset::Recording rec;
+  SolveOutput out;
+  std::string error;
+};
+
+using ImageEdit = std::function<cv::Mat(const std::string& file, cv::Mat img)>;
+
+SolveRun Solve(const sim::SimOptions& o, const ImageEdit& edit = {},
+               const PipelineOptions& p = {}) {
+  SolveRun r;
+  r.sim = std::make_unique<sim::RigSimulator>(o);
+  r.rec = r.sim->MakeRecording(/*with_hall=*/false);
+  const ImageLoader load = [&](const std::string& file) -> cv::Mat {
+    cv::Mat img;
+    for (size_t i = 0; i < r.rec.step1.size(); ++i)
+      if (r.rec.step1[i].file == file) img = r.sim->RenderStep1Frame(i);
+    for (size_t i = 0; i < r.rec.step2.size(); ++i)
+      if (r.rec.step2[i].file == file) img = r.sim->RenderStep2Frame(i);
+    if (!img.empty() && edit) img = edit(file, img);
+    return img;
+  };
+  try {
+    r.out = SolveRecording(r.rec, load, p);
+  } catch (const SolveError& e) {
+    r.error = e.what();
+  }
+  return r;
+}
+
+struct Errors {
+  double normal_rms_deg = 0;
+  double beam_max_deg = 0;
+};
+
+Errors AgainstTruth(const SolveRun& r) {
+  Errors e;
+  double s2 = 0;
+  for (const auto& pl : r.out.planes) {
+    const geometry::Plane truth =
+        r.sim->MirrorPlaneInWorld(r.sim->triggers()[pl.j].t_s, sim::DriveMode::kScan);
+    const double a = geometry::AngleBetween(pl.plane_in_world.n, truth.n) * kRadToDeg;
+    s2 += a * a;
+  }
+  e.normal_rms_deg = std::sqrt(s2 / std::max<size_t>(1, r.out.planes.size()));
+  for (const auto& b : r.out.beams) {
+    const auto& truth = r.sim->beams_in_world()[b.beam - 1];
+    e.beam_max_deg = std::max(e.beam_max_deg, geometry::AngleBetween(b.v, truth.v) * kRadToDeg);
+  }
+  return e;
+}
+
+// ------------------------------------------------------------------ a second image model
+// Applied to the renderer's output: a gamma curve (sensor response), a box PSF on top of the
+// renderer's Gaussian, radial vignetting, and JPEG-like compression (8x8 DCT quantisation).
+cv::Mat OtherImageModel(const cv::Mat& img, double gamma, double vignette, int jpeg_quality) {
+  cv::Mat f;
+  img.convertTo(f, CV_32F, img.depth() == CV_16U ? 1.0 / 65535 : 1.0 / 255);
+  cv::blur(f, f, cv::Size(3, 3));
+  const cv::Point2f c(0.5f * (f.cols - 1), 0.5f * (f.rows - 1));
+  const float r2max = c.x * c.x + c.y * c.y;
+  for (int y = 0; y < f.rows; ++y) {
+    float* p = f.ptr<float>(y);
+    for (int x = 0; x < f.cols; ++x) {
+      const float r2 = ((x - c.x) * (x - c.x) + (y - c.y) * (y - c.y)) / r2max;
+      const float g = 1.0f - static_cast<float>(vignette) * r2;
+      for (int k = 0; k < f.channels(); ++k) {
+        float& v = p[x * f.channels() + k];
+        v = std::pow(std::clamp(v * g, 0.0f, 1.0f), static_cast<float>(gamma));
+      }
+    }
+  }
+  cv::Mat out;
+  f.convertTo(out, CV_8U, 255.0);
+  std::vector<uchar> jpeg;
+  cv::imencode(".jpg", out, jpeg, {cv::IMWRITE_JPEG_QUALITY, jpeg_quality});
+  return cv::imdecode(jpeg, cv::IMREAD_UNCHANGED);
+}
+
+TEST(RobustnessSimTest, IndependentLikeSceneSolves) {
+  const SolveRun r = Solve(IndependentLikeScene(3));
+  ASSERT_TRUE(r.error.empty()) << r.error;
+  const Errors e = AgainstTruth(r);
+  std::printf(
+      "independent-like: %d scan planes, normal RMS %.4f deg, worst beam %.4f deg, "
+      "normalised validation %.2f, dropped %zu\n",
+      r.out.num_scan_planes, e.normal_rms_deg, e.beam_max_deg, r.out.rms_normalised_validation,
+      r.out.dropped.size());
+  EXPECT_EQ(r.out.num_scan_planes, static_cast<int>(r.sim->triggers().size()));
+  // Measured 0.023 deg / 0.028 deg with one exposure per step 1 frame (the goal is 0.010 deg:
+  // see the issue's notes); the bound guards against regressions.
+  EXPECT_LT(e.normal_rms_deg, 0.04);
+  EXPECT_LT(e.beam_max_deg, 0.05);
+  EXPECT_LT(r.out.rms_normalised_validation, 2.0);
+}
+
+TEST(RobustnessSimTest, SecondImageModelSolves) {
+  sim::SimOptions o = IndependentLikeScene(5);
+  o.render.colour = false;
+  const SolveRun r = Solve(o, [](const std::string&, cv::Mat img) {
+    return OtherImageModel(img, /*gamma=*/0.6, /*vignette=*/0.35, /*jpeg_quality=*/85);
+  });
+  ASSERT_TRUE(r.error.empty()) << r.error;
+  const Errors e = AgainstTruth(r);
+  std::printf(
+      "second image model: %d scan planes, normal RMS %.4f deg, worst beam %.4f deg, "
+      "normalised validation %.2f, dropped %zu\n",
+      r.out.num_scan_planes, e.normal_rms_deg, e.beam_max_deg, r.out.rms_normalised_validation,
+      r.out.dropped.size());
+  EXPECT_GE(r.out.num_scan_planes, static_cast<int>(r.sim->triggers().size()) - 1);
+  EXPECT_LT(e.normal_rms_deg, 0.08);
+  EXPECT_LT(e.beam_max_deg, 0.1);
+}
+
+// ------------------------------------------------------------------ spoiled frames
+TEST(RobustnessSimTest, SpoiledFramesAreNamedWithTheirReason) {
+  sim::SimOptions o;
+  o.seed = 7;
+  ScaleCamera(&o, 0.5);
+  o.step1.exposures = 1;
+  const sim::RigSimulator plan(o);
+  const dataset::Recording rec = plan.MakeRecording(/*with_hall=*/false);
+  // A step 1 frame with every beam (not an identification frame), a scan frame, a fast-only frame.
+  std::string black, blurred, half;
+  for (const auto& f : rec.step1)
+    if (black.empty() && f.beams.size() > 1) black = f.file;
+  for (const auto& f : rec.step2) {
+    if (blurred.empty() && f.kind == dataset::Step2Kind::kScan) blurred = f.file;
+    if (half.empty() && f.kind == dataset::Step2Kind::kFastOnly) half = f.file;
+  }
+  ASSERT_FALSE(black.empty() || blurred.empty() || half.empty());
+  const SolveRun r = Solve(o, [&](const std::string& file, cv::Mat img) -> cv::Mat {
+    if (file == black) return cv::Mat::zeros(img.size(), img.type());
+    if (file == blurred) {
+      cv::GaussianBlur(img, img, cv::Size(0, 0), 12.0);
+      return img;
+    }
+    if (file == half) {  // the board half out of view: the image shifted by half its width
+      cv::Mat out = cv::Mat::zeros(img.size(), img.type());
+      img(cv::Rect(img.cols / 2, 0, img.cols - img.cols / 2, img.rows))
+          .copyTo(out(cv::Rect(0, 0, img.cols - img.cols / 2, img.rows)));
+      return out;
+    }
+    return img;
+  });
+  ASSERT_TRUE(r.error.empty()) << r.error;
+  ASSERT_EQ(r.out.detections.size(), rec.step1.size() + rec.step2.size());
+  std::map<std::string, const FrameDetection*> by_file;
+  for (const auto& d : r.out.detections) by_file[d.file] = &d;
+  for (const std::string& f : {black, blurred, half}) {
+    const FrameDetection& d = *by_file.at(f);
+    std::printf("%s: used %d, reason '%s'\n", f.c_str(), d.used, d.reason.c_str());
+    EXPECT_FALSE(d.used) << f;
+    EXPECT_FALSE(d.reason.empty()) << f;
+  }
+  EXPECT_NE(by_file.at(black)->reason.find("not found"), std::string::npos);
+  EXPECT_NE(by_file.at(half)->reason.find("world board"), std::string::npos);
+  // Every other frame is used, and its row says how its boards were found.
+  int used = 0;
+  for (const auto& d : r.out.detections) {
+    if (d.file == black || d.file == blurred || d.file == half) continue;
+    used += d.used;
+    if (d.used) {
+      EXPECT_TRUE(d.boards[0].found || d.partial) << d.file;
+    }
+  }
+  EXPECT_GE(used, static_cast<int>(r.out.detections.size()) - 3 - 2);
+  // The CSV: the contract's first columns, one row per frame, the spoiled ones with used = 0.
+  const std::string csv = FormatDetectionsCsv(r.out.detections);
+  EXPECT_EQ(csv.rfind("file,step,used,reason,", 0), 0u);
+  EXPECT_EQ(static_cast<size_t>(std::count(csv.begin(), csv.end(), '\n')),
+            r.out.detections.size() + 1);
+  EXPECT_NE(csv.find(black + ",step1,0,"), std::string::npos);
+  const DropSummary sum = SummariseDrops(r.out.detections);
+  EXPECT_GE(sum.dropped, 3);
+  EXPECT_FALSE(sum.hint.empty());
+  // The annotated image is the frame's size, 8-bit BGR.
+  const cv::Mat annotated = AnnotateFrame(cv::Mat::zeros(100, 120, CV_16UC1), *by_file.at(black));
+  EXPECT_EQ(annotated.type(), CV_8UC3);
+  EXPECT_EQ(annotated.size(), cv::Size(120, 100));
+}
+
+// A solve that fails still says which frames it measured and why it dropped them.
+TEST(RobustnessSimTest, FailedSolveCarriesItsDetections) {
+  sim::SimOptions o;
+  o.seed = 8;
+  ScaleCamera(&o, 0.5);
+  o.step1.exposures = 1;
+  sim::RigSimulator s(o);
+  const dataset::Recording rec = s.MakeRecording(/*with_hall=*/false);
+  const ImageLoader black = [&](const std::string&) {
+    return cv::Mat(cv::Size(o.camera.width, o.camera.height), CV_8UC1, cv::Scalar(0));
+  };
+  try {
+    SolveRecording(rec, black);
+    FAIL() << "expected a SolveError";
+  } catch (const SolveError& e) {
+    ASSERT_TRUE(e.partial);
+    ASSERT_EQ(e.partial->detections.size(), rec.step1.size() + rec.step2.size());
+    for (const auto& d : e.partial->detections) {
+      EXPECT_FALSE(d.used);
+      EXPECT_FALSE(d.reason.empty());
+    }
+    const DropSummary sum = SummariseDrops(e.partial->detections);
+    EXPECT_NE(sum.hint.find("board was not found"), std::string::npos) << sum.hint;
+  }
+}
+
+// ------------------------------------------------------------------ randomised suite
+// Scenes drawn across what a lab's images vary in; each solves, and its normalised validation
+// error stays honest.
+struct Draw {
+  sim::SimOptions sim;
+  double gain = 1, offset = 0;              // albedo / exposure: level' = gain * level + offset
+  double vignette = 0;                      // relative fall-off at the corners
+  double blur_px = 0;                       // extra defocus
+  std::array<double, 3> bgr_gain{1, 1, 1};  // colour balance
+  bool sixteen_bit = false;
+  std::string text;
+};
+
+Draw DrawScene(int k) {
+  std::mt19937_64 rng(1000 + k);
+  auto u = [&](double a, double b) { return std::uniform_real_distribution<double>(a, b)(rng); };
+  Draw d;
+  sim::SimOptions& o = d.sim;
+  o.seed = 100 + k;
+  const double scale = u(0.4, 0.6);
+  ScaleCamera(&o, scale);
+  o.step1.exposures = 1;
+  o.render.dot_sigma_mm = u(0.35, 0.9);
+  o.render.dot_peak = u(0.35, 2.0);
+  o.render.noise_sigma = u(0.002, 0.012);
+  o.render.colour = rng() % 2 == 0;
+  o.step1.tilt_deg = u(0, 25);
+  o.beams.spanning_angle_deg = u(18, 46);
+  d.gain = u(0.7, 1.15);
+  d.offset = u(-0.02, 0.06);
+  d.vignette = u(0, 0.4);
+  d.blur_px = u(0, 1.0);
+  if (o.render.colour) d.bgr_gain = {u(0.7, 1.2), u(0.85, 1.15), u(0.7, 1.2)};
+  d.sixteen_bit = rng() % 3 == 0;
+  char buf[300];
+  std::snprintf(buf, sizeof(buf),
+                "scene %d: scale %.2f, spot %.2f mm peak %.2f, noise %.3f, %s %d-bit, tilt %.0f, "
+                "span %.0f, gain %.2f offset %.2f, vignette %.2f, blur %.2f",
+                k, scale, o.render.dot_sigma_mm, o.render.dot_peak, o.render.noise_sigma,
+                o.render.colour ? "BGR" : "mono", d.sixteen_bit ? 16 : 8, o.step1.tilt_deg,
+                o.beams.spanning_angle_deg, d.gain, d.offset, d.vignette, d.blur_px);
+  d.text = buf;
+  return d;
+}
+
+cv::Mat ApplyDraw(const Draw& d, const cv::Mat& img) {
+  cv::Mat f;
+  img.convertTo(f, CV_32F, 1.0 / 255);
+  if (d.blur_px > 0.05) cv::GaussianBlur(f, f, cv::Size(0, 0), d.blur_px);
+  const cv::Point2f c(0.5f * (f.cols - 1), 0.5f * (f.rows - 1));
+  const float r2max = c.x * c.x + c.y * c.y;
+  const int ch = f.channels();
+  for (int y = 0; y < f.rows; ++y) {
+    float* p = f.ptr<float>(y);
+    for (int x = 0; x < f.cols; ++x) {
+      const float r2 = ((x - c.x) * (x - c.x) + (y - c.y) * (y - c.y)) / r2max;
+      const float g = static_cast<float>(d.gain * (1.0 - d.vignette * r2));
+      for (int k = 0; k < ch; ++k) {
+        float& v = p[x * ch + k];
+        v = v * g * static_cast<float>(ch == 3 ? d.bgr_gain[k] : 1.0) +
+            static_cast<float>(d.offset);
+      }
+    }
+  }
+  cv::Mat out;
+  if (d.sixteen_bit)
+    f.convertTo(out, CV_MAKETYPE(CV_16U, ch), 65535.0);
+  else
+    f.convertTo(out, CV_MAKETYPE(CV_8U, ch), 255.0);
+  return out;
+}
+
+class RandomisedScenes : public ::testing::TestWithParam<int> {};
+
+TEST_P(RandomisedScenes, SolvesWithHonestErrors) {
+  const Draw d = DrawScene(GetParam());
+  std::printf("%s\n", d.text.c_str());
+  const SolveRun r =
+      Solve(d.sim, [&](const std::string&, cv::Mat img) { return ApplyDraw(d, img); });
+  ASSERT_TRUE(r.error.empty()) << d.text << ": " << r.error;
+  const Errors e = AgainstTruth(r);
+  std::printf(
+      "  %d of %zu scan planes, normal RMS %.4f deg, worst beam %.4f deg, normalised "
+      "validation %.2f, dropped %zu\n",
+      r.out.num_scan_planes, r.sim->triggers().size(), e.normal_rms_deg, e.beam_max_deg,
+      r.out.rms_normalised_validation, r.out.dropped.size());
+  EXPECT_GE(r.out.num_scan_planes, static_cast<int>(0.8 * r.sim->triggers().size())) << d.text;
+  // Honest: the held-out beam's errors against their predicted covariance (1 expected; one
+  // scene's RMS over ~20 dots scatters by about +-30 %).
+  EXPECT_LT(r.out.rms_normalised_validation, 2.5) << d.text;
+  EXPECT_LT(e.normal_rms_deg, 0.1) << d.text;
+}
+
+INSTANTIATE_TEST_SUITE_P(Draws, RandomisedScenes, ::testing::Range(0, 40));
+
+}  // namespace
+}  // namespace msmcal::solver
