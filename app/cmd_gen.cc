@@ -89,7 +89,9 @@ void Apply(const GenArgs& args) {
   auto master = msmcal::gen::OpenKeysight33500(config.unit1, sink1);
   auto slave = msmcal::gen::OpenKeysight33500(config.unit2, sink2);
   msmcal::gen::RigGenerators rig(*master, *slave);
-  msmcal::gen::SafeStateGuard guard([&rig] { rig.SafeState(); });
+  msmcal::gen::SafeStateGuard guard([&rig] {
+    if (!rig.SafeState()) msmcal::gen::SafeStateGuard::ReportUnconfirmed();
+  });
   rig.Apply(plan);
   const auto& t = plan.trigger;
   std::printf(

@@ -103,8 +103,10 @@ void RunExplain(const SolveArgs& args, const solver::PipelineOptions& options) {
   std::vector<vision::BoardSize> asks;
   std::vector<std::string> names;
   std::string what;
+  int expected = 0;
   for (const auto& f : rec.step1)
     if (f.file == args.explain) {
+      expected = static_cast<int>(f.beams.size());
       asks = {world, sliding};
       names = {"world", "sliding"};
       what = "step 1, sliding pose " + std::to_string(f.pose) + ", " +
@@ -116,6 +118,7 @@ void RunExplain(const SolveArgs& args, const solver::PipelineOptions& options) {
       asks = {world};
       names = {"world"};
       const size_t triggers = f.kind == dataset::Step2Kind::kNeutral ? 1 : f.triggers.size();
+      expected = static_cast<int>(triggers * f.beams.size());
       what = std::string("step 2, ") + dataset::ToString(f.kind) + ", " + std::to_string(triggers) +
              " trigger(s) x " + std::to_string(f.beams.size()) + " beam(s): expects " +
              std::to_string(triggers * f.beams.size()) + " dot(s) on the world plane";
@@ -132,7 +135,7 @@ void RunExplain(const SolveArgs& args, const solver::PipelineOptions& options) {
               img.cols, img.rows, img.channels(), img.depth() == CV_16U ? 16 : 8, lo, hi,
               what.c_str());
   const auto t0 = std::chrono::steady_clock::now();
-  const solver::ImageMeasurement m = solver::MeasureImage(img, asks, options.dots, options.boards);
+  const solver::ImageMeasurement m = solver::MeasureFrame(img, asks, expected, options);
   const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   std::printf("measured in %.2f s\n", secs);
   for (size_t b = 0; b < asks.size(); ++b) {
@@ -172,6 +175,37 @@ void RunExplain(const SolveArgs& args, const solver::PipelineOptions& options) {
   }
   for (const auto& [why, n] : hidden)
     std::printf("  ... and %d more refused: %s\n", n, why.c_str());
+  const auto& host = asks.size() == 2 ? m.boards[1] : m.boards[0];
+  if (m.adaptive_dots) {
+    std::printf(
+        "the first pass fell short of the expected dots on the board's plane; the solve "
+        "uses the second pass: %s\n",
+        m.dot_settings.c_str());
+  } else if (host && static_cast<int>(m.dots_on_plane) < expected && options.adaptive_dots) {
+    std::printf(
+        "the first pass fell short of the expected dots on the board's plane; a second "
+        "pass with settings from the image's own noise and squares found %d there (kept "
+        "only if more, and at most %d surplus):\n",
+        m.second_pass_on_plane, options.max_surplus_dots);
+  }
+  if (host && static_cast<int>(m.dots_on_plane) < expected && options.adaptive_dots) {
+    const vision::DotOptions adaptive =
+        vision::AdaptiveDotOptions(img, host->square_px, options.dots);
+    std::vector<vision::DotCandidate> c2;
+    vision::DotRejections r2;
+    vision::DetectDots(img, adaptive, &r2, &c2);
+    int n = 0;
+    for (const auto& c : c2)
+      if (c.kept && n++ < 60)
+        std::printf("  (%7.1f, %7.1f) %4d px peak %6.0f elong %.2f: %s\n", c.centroid_px.x(),
+                    c.centroid_px.y(), c.num_pixels, c.peak, c.elongation, c.reason.c_str());
+    std::printf("  (blobs fainter than %.2f of the brightest on the plane are then refused: %d)\n",
+                options.adaptive_min_relative_peak, m.dot_rejections.too_faint);
+  }
+  std::printf(
+      "on the board's plane (margins, roundness in the plane, square corners): %zu of %zu "
+      "blobs\n",
+      m.dots_on_plane, m.dots.size());
 }
 
 // results/detections.csv, results/diagnostics/*.jpg (dropped and partly used frames) and the

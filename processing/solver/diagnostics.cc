@@ -83,6 +83,7 @@ std::vector<std::string> DetectionsCsvColumns() {
           "rejected_elongated",
           "rejected_saturated",
           "rejected_not_green",
+          "rejected_too_faint",
           "rejected_off_plane",
           "rejected_at_corner",
           "rejected_surface_elongated",
@@ -111,8 +112,8 @@ std::string FormatDetectionsCsv(const std::vector<FrameDetection>& detections) {
     s << ',' << d.blobs << ',' << (d.dots_found >= 0 ? std::to_string(d.dots_found) : "") << ','
       << d.dots_expected << ',' << d.rejected.too_small << ',' << d.rejected.too_large << ','
       << d.rejected.elongated << ',' << d.rejected.saturated << ',' << d.rejected.not_green << ','
-      << d.off_plane << ',' << d.junction << ',' << d.surface_elongated << ','
-      << d.rejected.fit_fallbacks << '\n';
+      << d.rejected.too_faint << ',' << d.off_plane << ',' << d.junction << ','
+      << d.surface_elongated << ',' << d.rejected.fit_fallbacks << '\n';
   }
   return s.str();
 }

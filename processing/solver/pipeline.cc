@@ -161,12 +161,16 @@ std::vector<vision::Dot> DotsOnBoard(const std::vector<vision::Dot>& dots,
                                      const std::vector<Eigen::Vector2d>& exclude,
                                      RegionRejections* rej) {
   const auto outline = vision::SquaresOutline(board, size, margin_squares);
+  // The host board's own printed area wins over the other board's outline (the sliding plate
+  // may hide part of the world board in the image).
+  const auto own_area = vision::SquaresOutline(board, size, 0.5);
   const cv::Matx33d h = BoardHomography(board, size);
   const double junction_px = o.junction_exclusion_squares * board.square_px;
   std::vector<vision::Dot> out;
   for (const auto& d : dots) {
     if (!vision::InsideOutline(outline, d.px) ||
-        (!exclude.empty() && vision::InsideOutline(exclude, d.px))) {
+        (!exclude.empty() && vision::InsideOutline(exclude, d.px) &&
+         !vision::InsideOutline(own_area, d.px))) {
       ++rej->off_plane;
       continue;
     }
@@ -274,6 +278,8 @@ std::string PipelineOptions::Validate() const {
     s << "junction_elongation = " << junction_elongation << " must be >= 1";
   else if (!(junction_exclusion_squares >= 0 && junction_exclusion_squares <= 1))
     s << "junction_exclusion_squares = " << junction_exclusion_squares << " must be in [0, 1]";
+  else if (!(adaptive_min_relative_peak >= 0 && adaptive_min_relative_peak < 1))
+    s << "adaptive_min_relative_peak = " << adaptive_min_relative_peak << " must be in [0, 1)";
   else if (max_surplus_dots < 0 || max_surplus_dots > 50)
     s << "max_surplus_dots = " << max_surplus_dots << " must be in [0, 50]";
   else if (!(max_group_residual_px > 0))
@@ -444,18 +450,33 @@ void ForEachImage(size_t count, int threads, const std::function<void(size_t)>& 
     if (e) std::rethrow_exception(e);
 }
 
+// The dots of a measured image that lie on the plane of the board that carries them (step 1:
+// the sliding board, boards[1], never on the world board; step 2: the world board, boards[0]).
+std::vector<vision::Dot> DotsOnHostPlane(const std::vector<vision::Dot>& dots,
+                                         const ImageMeasurement& m,
+                                         const std::vector<vision::BoardSize>& sizes,
+                                         const PipelineOptions& o, RegionRejections* rej) {
+  if (sizes.size() == 2) {
+    return DotsOnBoard(dots, *m.boards[1], sizes[1], o.step1_dot_margin_squares, o,
+                       m.boards[0] ? vision::SquaresOutline(*m.boards[0], sizes[0], 0.5)
+                                   : std::vector<Eigen::Vector2d>{},
+                       rej);
+  }
+  return DotsOnBoard(dots, *m.boards[0], sizes[0], o.step2_dot_margin_squares, o, {}, rej);
+}
+
+// `expected[i]`: the dots image i should show (0: not checked). An image whose first pass finds
+// fewer on its board's plane is measured again with settings from its own data
+// (AdaptiveDotOptions); the second pass is kept if it finds more.
 std::vector<ImageMeasurement> MeasureImages(
     const std::vector<std::string>& files,
     const std::vector<std::vector<vision::BoardSize>>& boards, const ImageLoader& load,
-    const vision::DotOptions& dot_options, const vision::CheckerboardOptions& board_options,
-    int threads) {
+    const PipelineOptions& o, const std::vector<int>& expected) {
   std::vector<ImageMeasurement> out(files.size());
-  ForEachImage(files.size(), threads, [&](size_t i) {
-    // OpenCV's detectors draw from the calling thread's cv::theRNG(): reseed it per image so
-    // that an image's measurement does not depend on which images its thread measured before.
+  ForEachImage(files.size(), o.image_threads, [&](size_t i) {
     const cv::Mat img = load(files[i]);
     if (img.empty()) throw SolveError(files[i] + ": cannot read the image");
-    out[i] = MeasureImage(img, boards[i], dot_options, board_options);
+    out[i] = MeasureFrame(img, boards[i], expected[i], o);
   });
   return out;
 }
@@ -604,6 +625,67 @@ ImageMeasurement MeasureImage(const cv::Mat& img, const std::vector<vision::Boar
   return m;
 }
 
+ImageMeasurement MeasureFrame(const cv::Mat& img, const std::vector<vision::BoardSize>& sizes,
+                              int expected, const PipelineOptions& o) {
+  ImageMeasurement m = MeasureImage(img, sizes, o.dots, o.boards);
+  const auto& host = sizes.size() == 2 ? m.boards[1] : m.boards[0];
+  if (!host) return m;
+  RegionRejections rej;
+  const size_t first = DotsOnHostPlane(m.dots, m, sizes, o, &rej).size();
+  m.dots_on_plane = first;
+  if (!o.adaptive_dots || expected <= 0 || first >= static_cast<size_t>(expected)) return m;
+  const vision::DotOptions adaptive = vision::AdaptiveDotOptions(img, host->square_px, o.dots);
+  vision::DotRejections rej2;
+  auto dots2 = vision::DetectDots(img, adaptive, &rej2);
+  // A low threshold also passes noise, compression and board residue: the laser's spots in
+  // one frame are alike, so blobs far fainter than the frame's brightest on the plane go.
+  RegionRejections rej3;
+  double brightest = 0;
+  for (const auto& d : DotsOnHostPlane(dots2, m, sizes, o, &rej3))
+    brightest = std::max(brightest, d.peak);
+  // A clipped spot's peak is capped by the headroom over its background (a light square,
+  // gamma): it is compared with the smaller of the brightest and that headroom.
+  const double full = img.depth() == CV_16U ? 65535.0 : 255.0;
+  const size_t before_peak = dots2.size();
+  dots2.erase(std::remove_if(dots2.begin(), dots2.end(),
+                             [&](const vision::Dot& d) {
+                               // Only a clipped spot is excused by its headroom.
+                               const bool clipped =
+                                   d.peak_level >= std::min(d.plateau_level, 0.98 * full);
+                               const double headroom = full - (d.peak_level - d.peak);
+                               const double reference =
+                                   clipped ? std::min(brightest, headroom) : brightest;
+                               return d.peak < o.adaptive_min_relative_peak * reference;
+                             }),
+              dots2.end());
+  rej2.too_faint = static_cast<int>(before_peak - dots2.size());
+  // The second pass adds to the first: its dots that no first-pass dot's blob already covers
+  // (a larger kernel can merge or lose a spot the first pass had).
+  for (const auto& d : m.dots)
+    if (std::none_of(dots2.begin(), dots2.end(), [&](const vision::Dot& e) {
+          return (e.px - d.px).norm() < 0.5 * std::max(d.blob_box.width, d.blob_box.height) + 2;
+        }))
+      dots2.push_back(d);
+  std::sort(dots2.begin(), dots2.end(), [](const vision::Dot& a, const vision::Dot& b) {
+    return std::make_pair(a.blob_box.y, a.blob_box.x) < std::make_pair(b.blob_box.y, b.blob_box.x);
+  });
+  rej3 = {};
+  const size_t second = DotsOnHostPlane(dots2, m, sizes, o, &rej3).size();
+
+  m.second_pass_on_plane = static_cast<int>(second);
+  if (second <= first || second > static_cast<size_t>(expected + o.max_surplus_dots)) return m;
+  m.dots = std::move(dots2);
+  m.dot_rejections = rej2;
+  m.adaptive_dots = true;
+  std::ostringstream what;
+  what << "dots from the image's own scale: threshold " << adaptive.threshold_fraction
+       << " of full scale, top-hat " << adaptive.background_kernel_px << " px, min "
+       << adaptive.min_pixels << " px (" << first << " -> " << second << " on the plane)";
+  m.dot_settings = what.str();
+  m.dots_on_plane = second;
+  return m;
+}
+
 SolveOutput SolveRecording(const dataset::Recording& input, const ImageLoader& input_load,
                            const PipelineOptions& o) {
   if (const std::string e = o.Validate(); !e.empty()) throw SolveError("PipelineOptions: " + e);
@@ -735,7 +817,12 @@ SolveOutput SolveRecording(const dataset::Recording& input, const ImageLoader& i
       asks.push_back({world_size});
     }
     try {
-      measured = MeasureImages(files, asks, load, o.dots, o.boards, o.image_threads);
+      std::vector<int> expected;
+      for (const auto& f : rec.step1) expected.push_back(static_cast<int>(f.beams.size()));
+      for (const auto& f : rec.step2)
+        expected.push_back(static_cast<int>(
+            (f.kind == Step2Kind::kNeutral ? 1 : f.triggers.size()) * f.beams.size()));
+      measured = MeasureImages(files, asks, load, o, expected);
       if (o.dots.centre == vision::DotCentre::kGaussianFit) {
         std::vector<std::vector<size_t>> static_groups;
         std::map<int, size_t> group_of_pose;
@@ -781,6 +868,7 @@ SolveOutput SolveRecording(const dataset::Recording& input, const ImageLoader& i
       d.boards.push_back(board);
     }
     d.blobs = static_cast<int>(measured[i].dots.size());
+    if (measured[i].adaptive_dots) d.note = measured[i].dot_settings;
     d.rejected = measured[i].dot_rejections;
     det.push_back(std::move(d));
   }
@@ -1084,8 +1172,8 @@ SolveOutput SolveRecording(const dataset::Recording& input, const ImageLoader& i
     s2.push_back({&f, dots, {}, {}, partial});
   }
   if (!c2_from_world)
-    throw fail("step2: the world board (" + SizeText(rec.world_board) +
-               ") was not found in any usable step 2 image");
+    throw fail("step2: no usable step 2 image (the world board (" + SizeText(rec.world_board) +
+               ") must be found and the frame's laser dots counted)");
   // Dots whose spot (blob radius plus half the top-hat kernel) reaches a square edge of the
   // world board: the background there biases the centroid (docs/solver.md, "Dot covariance").
   auto near_edge = [&](const vision::Dot& d, const Eigen::Vector3d& p) {

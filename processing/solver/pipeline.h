@@ -70,6 +70,15 @@ struct PipelineOptions {
   // A step 2 frame with more blobs than expected is still grouped (the mirror-plane consistency
   // picks the dots) unless the surplus exceeds this.
   int max_surplus_dots = 12;
+  // A frame whose dots (with `dots`) fall short of what session.yaml says it shows is measured
+  // again with settings derived from the image itself (vision::AdaptiveDotOptions: threshold
+  // from its noise, top-hat kernel from its board's squares); kept where it finds more.
+  bool adaptive_dots = true;
+  // In that pass, blobs whose peak is below this fraction of the frame's brightest blob on the
+  // board's plane (or of their headroom over the background, if smaller) are refused (noise,
+  // compression artefacts and board residue passed by the low threshold; one frame's laser spots
+  // are alike).
+  double adaptive_min_relative_peak = 0.25;
   // Trigger-index assignment inside multi-trigger frames (RANSAC over a drive-phase model).
   int ransac_iterations = 3000;
   double ransac_inlier_deg = 0.4;
@@ -168,12 +177,21 @@ struct ImageMeasurement {
   std::vector<std::vector<vision::BoardAttempt>> board_attempts;  // per board asked for
   std::vector<vision::Dot> dots;
   vision::DotRejections dot_rejections;
+  bool adaptive_dots = false;     // dots from the second, data-driven pass (AdaptiveDotOptions)
+  std::string dot_settings;       // that pass's settings, for the frame's note
+  size_t dots_on_plane = 0;       // of `dots`, on the plane of the board that carries them
+  int second_pass_on_plane = -1;  // what the second pass found there (-1: not run)
   cv::Size image_size;
   int channels = 1, depth_bits = 8;
 };
 ImageMeasurement MeasureImage(const cv::Mat& image, const std::vector<vision::BoardSize>& boards,
                               const vision::DotOptions& dot_options,
                               const vision::CheckerboardOptions& board_options);
+// The same, then (PipelineOptions::adaptive_dots) a second, data-driven dot pass where the first
+// finds fewer than `expected_dots` on the plane of the board that carries them (step 1: the
+// sliding board, boards[1]; step 2: the world board).
+ImageMeasurement MeasureFrame(const cv::Mat& image, const std::vector<vision::BoardSize>& boards,
+                              int expected_dots, const PipelineOptions& options);
 
 // Trigger-index assignment, exposed for tests. Each group is one mirror plane from a frame with
 // several triggers; its pose angles (deg) are in a provisional home frame. For each frame, finds

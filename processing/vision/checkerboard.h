@@ -9,11 +9,12 @@
 //
 // Detection is a fallback chain (BoardMethod), cheapest first, each refined at full resolution
 // with cv::cornerSubPix: findChessboardCornersSB on a ladder of downscaled copies, SB at full
-// resolution, the classic quad detector (cv::findChessboardCorners with adaptive threshold; it
-// finds small, blurred or unevenly lit boards that SB misses), then SB on a 2x upscaled copy
-// (squares below ~12 px; small images only). Every candidate grid must pass a geometric check
-// (corners refined within a fraction of a square of where the detector put them, a locally
-// consistent grid) before it is accepted; the method that found the board is recorded.
+// resolution, the classic quad detector (cv::findChessboardCorners with adaptive threshold and
+// its fast check; it finds small, blurred or unevenly lit boards that SB misses; boards of at
+// most classic_max_corners), then SB on a 2x upscaled copy (squares below ~12 px; small images
+// only). Every candidate grid must pass a
+// geometric check (corners refined within a fraction of a square of where the detector put them, a
+// locally consistent grid) before it is accepted; the method that found the board is recorded.
 
 #include <Eigen/Core>
 #include <opencv2/core.hpp>
@@ -40,6 +41,7 @@ struct CheckerboardOptions {
   bool try_sb_upscaled = true;  // only where the upscaled longer side is <= upscale_max_side_px
   int upscale_max_side_px = 3300;
   bool try_classic = true;
+  int classic_max_corners = 400;  // its cost explodes with the board's size
   // A grid is refused if cornerSubPix moves a corner by more than this fraction of the local
   // square size (the detector latched on something else), or if a corner deviates from the
   // average of its neighbours' prediction by more than this fraction (not a grid).

@@ -2,6 +2,7 @@
 
 #include <Eigen/Eigenvalues>
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdint>
 #include <cstring>
@@ -30,6 +31,36 @@ inline int GreenExcess(const T* row, int x) {
   return static_cast<int>(p[1]) - std::max<int>(p[0], p[2]);
 }
 
+// Per channel: the blob's brightest value minus the median of a ring around its box (the box
+// grown by its own size, at least 3 px); returns the green rise minus the larger of the blue and
+// red rises.
+int RelativeGreenExcess(const cv::Mat& image, const cv::Rect& box) {
+  const int m = std::max(3, std::max(box.width, box.height));
+  const cv::Rect outer = cv::Rect(box.x - m, box.y - m, box.width + 2 * m, box.height + 2 * m) &
+                         cv::Rect(0, 0, image.cols, image.rows);
+  std::array<std::vector<int>, 3> ring;
+  std::array<int, 3> top{0, 0, 0};
+  for (int y = outer.y; y < outer.y + outer.height; ++y)
+    for (int x = outer.x; x < outer.x + outer.width; ++x) {
+      const bool inside = box.contains(cv::Point(x, y));
+      for (int c = 0; c < 3; ++c) {
+        const int v = image.depth() == CV_8U ? image.ptr<uint8_t>(y)[3 * x + c]
+                                             : image.ptr<uint16_t>(y)[3 * x + c];
+        if (inside)
+          top[c] = std::max(top[c], v);
+        else
+          ring[c].push_back(v);
+      }
+    }
+  if (ring[0].empty()) return std::numeric_limits<int>::min();
+  std::array<int, 3> rise{};
+  for (int c = 0; c < 3; ++c) {
+    std::nth_element(ring[c].begin(), ring[c].begin() + ring[c].size() / 2, ring[c].end());
+    rise[c] = top[c] - ring[c][ring[c].size() / 2];
+  }
+  return rise[1] - std::max(rise[0], rise[2]);
+}
+
 template <typename T, int kChannels>
 inline bool Saturated(const T* row, int x, int full) {
   if constexpr (kChannels == 1) {
@@ -42,7 +73,7 @@ inline bool Saturated(const T* row, int x, int full) {
 struct Accumulator {
   double sw = 0, sw2 = 0, sx = 0, sy = 0, sxx = 0, sxy = 0, syy = 0;
   int n = 0, saturated = 0;
-  double peak = 0;
+  double peak = 0, peak_level = 0;
   int x0 = 0, y0 = 0, x1 = 0, y1 = 0;  // bounding box, inclusive
 };
 
@@ -149,8 +180,7 @@ bool FitGaussian(const std::vector<FitPixel>& px, Dot* dot) {
 // from `original` (the image before the top-hat).
 template <typename T>
 std::vector<FitPixel> WindowPixels(const cv::Mat& signal_image, const cv::Mat& original,
-                                   const cv::Rect& window) {
-  const int full = sizeof(T) == 1 ? 255 : 65535;
+                                   const cv::Rect& window, double full) {
   std::vector<FitPixel> px;
   px.reserve(window.area());
   for (int y = window.y; y < window.y + window.height; ++y) {
@@ -158,9 +188,29 @@ std::vector<FitPixel> WindowPixels(const cv::Mat& signal_image, const cv::Mat& o
     const T* o = original.ptr<T>(y);
     for (int x = window.x; x < window.x + window.width; ++x)
       px.push_back({static_cast<double>(x), static_cast<double>(y), static_cast<double>(r[x]),
-                    o[x] >= full});
+                    o[x] >= full});  // `full`: the blob's plateau level (Dot::plateau_level)
   }
   return px;
+}
+
+// The level at which a blob's pixels are clipped: full scale, unless the blob's brightest pixels
+// in `original` form a flat top below it (at least 4 pixels within 1 % of the blob's maximum,
+// itself at least 20 % of full scale; an unclipped sampled Gaussian of sigma < 5 px has 1-2).
+template <typename T>
+double PlateauLevel(const cv::Mat& original, const cv::Rect& box, int full) {
+  double top = 0;
+  for (int y = box.y; y < box.y + box.height; ++y) {
+    const T* o = original.ptr<T>(y);
+    for (int x = box.x; x < box.x + box.width; ++x) top = std::max<double>(top, o[x]);
+  }
+  if (top >= full || top < 0.2 * full) return full;
+  const double tol = std::max(0.01 * top, 2.0 * full / 255.0);
+  int near_top = 0;
+  for (int y = box.y; y < box.y + box.height; ++y) {
+    const T* o = original.ptr<T>(y);
+    for (int x = box.x; x < box.x + box.width; ++x) near_top += o[x] >= top - tol;
+  }
+  return near_top >= 4 ? top - tol : full;
 }
 
 // Blobs of the one-channel `image` (signal) seeded and bounded by `candidates`; saturation is
@@ -204,7 +254,10 @@ std::vector<Dot> Detect(const cv::Mat& image, const cv::Mat& original, cv::Mat1b
           acc.y0 = std::min(acc.y0, cy), acc.y1 = std::max(acc.y1, cy);
         } else {
           if (original.ptr<T>(cy)[cx] >= full) ++acc.saturated;
-          acc.peak = std::max(acc.peak, s);
+          if (s > acc.peak || acc.n == 1) {
+            acc.peak = s;
+            acc.peak_level = original.ptr<T>(cy)[cx];
+          }
           acc.sw += s;
           acc.sw2 += s * s;
           acc.sx += s * cx;
@@ -277,13 +330,16 @@ std::vector<Dot> Detect(const cv::Mat& image, const cv::Mat& original, cv::Mat1b
       dot.cov_px2 = scatter / n_eff;
       dot.num_pixels = acc.n;
       dot.peak = acc.peak;
+      dot.peak_level = acc.peak_level;
       dot.saturated_pixels = acc.saturated;
       dot.scatter_px2 = scatter;
       dot.centroid_px = dot.px;
       dot.blob_box = cv::Rect(acc.x0, acc.y0, acc.x1 - acc.x0 + 1, acc.y1 - acc.y0 + 1);
+      dot.plateau_level = PlateauLevel<T>(original, dot.blob_box, full);
       if (o.centre == DotCentre::kGaussianFit) {
         Dot fit = dot;
-        if (FitGaussian(WindowPixels<T>(image, original, DotFitWindow(dot, image.size(), o)),
+        if (FitGaussian(WindowPixels<T>(image, original, DotFitWindow(dot, image.size(), o),
+                                        dot.plateau_level),
                         &fit) &&
             (fit.px - dot.px).norm() <= o.max_fit_shift_px)
           dot = fit;
@@ -382,6 +438,9 @@ std::vector<Dot> DetectDots(const cv::Mat& image, const DotOptions& options,
         for (int x = d.blob_box.x; x < d.blob_box.x + d.blob_box.width; ++x)
           best = std::max(best, image.depth() == CV_8U ? GreenExcess(image.ptr<uint8_t>(y), x)
                                                        : GreenExcess(image.ptr<uint16_t>(y), x));
+      // Relative to the surroundings: a green spot on a light (white or tinted) square where
+      // blue or red is saturated too raises green alone (the absolute excess is ~0 there).
+      if (best < min_excess) best = std::max(best, RelativeGreenExcess(image, d.blob_box));
       if (best >= min_excess) {
         green_dots.push_back(d);
       } else {
@@ -399,6 +458,61 @@ std::vector<Dot> DetectDots(const cv::Mat& image, const DotOptions& options,
   }
   if (rejections) *rejections = local;
   return dots;
+}
+
+namespace {
+
+// Median of a sample of `m`'s values (every pixel of every `row_step`-th row), as a double.
+double SampledMedian(const cv::Mat& m, int row_step, bool abs_horizontal_difference) {
+  std::vector<float> v;
+  v.reserve(static_cast<size_t>(m.cols) * (m.rows / row_step + 1));
+  for (int y = 0; y < m.rows; y += row_step) {
+    if (m.depth() == CV_8U) {
+      const uint8_t* r = m.ptr<uint8_t>(y);
+      for (int x = 0; x + 1 < m.cols; ++x)
+        v.push_back(abs_horizontal_difference ? std::abs(int{r[x + 1]} - int{r[x]}) : r[x]);
+    } else {
+      const uint16_t* r = m.ptr<uint16_t>(y);
+      for (int x = 0; x + 1 < m.cols; ++x)
+        v.push_back(abs_horizontal_difference ? std::abs(int{r[x + 1]} - int{r[x]}) : r[x]);
+    }
+  }
+  if (v.empty()) return 0;
+  std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
+  return v[v.size() / 2];
+}
+
+}  // namespace
+
+DotOptions AdaptiveDotOptions(const cv::Mat& image, double square_px, const DotOptions& base) {
+  if (image.type() != CV_8UC1 && image.type() != CV_8UC3 && image.type() != CV_16UC1 &&
+      image.type() != CV_16UC3)
+    throw std::invalid_argument("AdaptiveDotOptions: unsupported image type " +
+                                std::to_string(image.type()));
+  DotOptions o = base;
+  int k = static_cast<int>(std::floor(0.8 * std::max(square_px, 0.0)));
+  if (k % 2 == 0) --k;
+  k = std::clamp(k, 5, 61);
+  o.background_kernel_px = k;
+  cv::Mat mono = image;
+  if (image.channels() == 3) cv::extractChannel(image, mono, 1);
+  const double full = image.depth() == CV_16U ? 65535.0 : 255.0;
+  const int row_step = std::max(1, mono.rows / 300);
+  // Pixel-to-pixel noise: the median absolute horizontal difference (edges are too few to move
+  // it), 1.4826 / sqrt(2) of it is the noise sigma.
+  const double sigma = 1.4826 / std::sqrt(2.0) * SampledMedian(mono, row_step, true);
+  const cv::Mat kernel = cv::getStructuringElement(cv::MORPH_RECT, cv::Size(k, k));
+  cv::Mat eroded, opened, top_hat;
+  cv::erode(mono, eroded, kernel);
+  cv::dilate(eroded, opened, kernel);
+  cv::subtract(mono, opened, top_hat);
+  const double floor_level = SampledMedian(top_hat, row_step, false);
+  o.threshold_fraction =
+      std::clamp((floor_level + 8.0 * std::max(sigma, 0.5)) / full, 0.02, base.threshold_fraction);
+  o.min_pixels = std::min(base.min_pixels, 4);
+  o.max_pixels = std::max(base.max_pixels, k * k);
+  o.fit_margin_px = std::clamp(std::max(base.fit_margin_px, k / 4), 0, 50);
+  return o;
 }
 
 cv::Rect DotFitWindow(const Dot& dot, const cv::Size& image_size, const DotOptions& options) {
@@ -509,7 +623,9 @@ bool RefineDotOnBackground(const DotSignalPatch& own, const BackgroundPatch& bac
       const float c = background.count(y, x);
       if (!(c > 0)) return false;
       px.push_back({static_cast<double>(own.window.x + x), static_cast<double>(own.window.y + y),
-                    own.signal(y, x) - background.sum(y, x) / c, own.saturated(y, x) != 0});
+                    own.signal(y, x) - background.sum(y, x) / c,
+                    own.saturated(y, x) != 0 ||
+                        (dot->plateau_level > 0 && own.signal(y, x) >= dot->plateau_level)});
     }
   Dot fit = *dot;
   fit.px = dot->centroid_px;

@@ -23,6 +23,13 @@ struct Dot {
   Eigen::Matrix2d cov_px2 = Eigen::Matrix2d::Zero();  // covariance of the centre, px^2
   int num_pixels = 0;                                 // N, pixels above threshold
   double peak = 0;                                    // highest signal in the blob (image units)
+  // The image's level (before the top-hat) at that pixel: peak_level - peak is the background
+  // under the spot, full scale - that the most a spot can show there (its headroom).
+  double peak_level = 0;
+  // Level at and above which the spot's pixels are taken as clipped (bounds, not measurements):
+  // full scale, or lower where the blob has a flat top below it (a camera or a conversion that
+  // clips below full scale, a gain, blur or compression applied after clipping).
+  double plateau_level = 0;
   bool fitted = false;  // centre and covariance from the Gaussian fit (else: weighted centroid)
   bool on_background = false;  // fitted over a background from other images (RefineDots...)
   int saturated_pixels = 0;
@@ -78,6 +85,7 @@ struct DotOptions {
 struct DotRejections {
   int too_small = 0, too_large = 0, elongated = 0, saturated = 0;
   int not_green = 0;      // BGR: blobs nowhere greener than blue and red
+  int too_faint = 0;      // second (adaptive) pass: far fainter than the frame's brightest spot
   int fit_fallbacks = 0;  // kept dots whose Gaussian fit was not used (centroid kept)
 };
 
@@ -100,6 +108,15 @@ struct DotCandidate {
 std::vector<Dot> DetectDots(const cv::Mat& image, const DotOptions& options = {},
                             DotRejections* rejections = nullptr,
                             std::vector<DotCandidate>* candidates = nullptr);
+
+// Settings for one image from its own data, for spots the defaults miss (small or faint spots,
+// boards of small squares): the top-hat kernel from the board's square size (the largest odd
+// size below 0.8 squares, 5..61 px: a spot smaller than a square survives it, a square does
+// not), the threshold from the image's noise (the top-hat's median plus 8 robust sigmas of the
+// pixel-to-pixel noise, between 2 % of full scale and base's), min_pixels at most 4 (a spot of
+// sigma 0.8 px 8 sigmas above the noise covers about 4 pixels), max_pixels and the fit margin
+// from the kernel. `square_px`: the board's square size in the image.
+DotOptions AdaptiveDotOptions(const cv::Mat& image, double square_px, const DotOptions& base);
 
 // ---- Refinement over a background measured in other images ----
 // In a series of images of one static scene (camera and boards fixed, the laser dots moving

@@ -585,10 +585,12 @@ SessionResult RunSession(const OrchestratorOptions& options, const dataset::Reco
     result.safe_state_confirmed = ok;
   };
   // Explicit paths below run safe_state() and Disarm() the guard, so the guard's own action runs
-  // only on SIGINT/SIGTERM.
+  // only on a signal (INT, TERM, HUP, QUIT).
+  // On a signal: outputs off first, then the log line (the log may be a closed pipe).
   gen::SafeStateGuard guard([&] {
-    log.Line("interrupted (SIGINT/SIGTERM): switching generator outputs off", "error");
     safe_state();
+    if (!result.safe_state_confirmed) gen::SafeStateGuard::ReportUnconfirmed();
+    log.Line("interrupted (signal): generator outputs switched off", "error");
   });
   int accepted_total = 0;
   try {

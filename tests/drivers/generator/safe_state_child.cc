@@ -18,7 +18,9 @@ int main(int argc, char** argv) {
   auto master = OpenKeysight33500(config.unit1);
   auto slave = OpenKeysight33500(config.unit2);
   RigGenerators rig(*master, *slave);
-  SafeStateGuard guard([&] { rig.SafeState(); });
+  SafeStateGuard guard([&] {
+    if (!rig.SafeState()) SafeStateGuard::ReportUnconfirmed();
+  });
   rig.Apply(PlanRigSignals(config.signals));
   std::cout << "ready" << std::endl;
   std::string line;

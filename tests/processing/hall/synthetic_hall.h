@@ -23,7 +23,8 @@ struct SyntheticHallRig {
 
   // alpha_deg, beta_deg, trans_mm at generator time t (paper-like ranges: 4.37, 17.17, 1.04).
   Eigen::Vector3d Pose(double t) const {
-    const double a = 2.185 * std::sin(2 * M_PI * f_fast * t + 0.3) + 0.05 * std::sin(4 * M_PI * f_fast * t);
+    const double a =
+        2.185 * std::sin(2 * M_PI * f_fast * t + 0.3) + 0.05 * std::sin(4 * M_PI * f_fast * t);
     const double b = 8.585 * std::sin(2 * M_PI * f_slow * t + 1.0);
     const double tr = 0.03 * b + 0.004 * b * b - 0.15;
     return {a, b, tr};
@@ -36,7 +37,8 @@ struct SyntheticHallRig {
   Eigen::Vector3d Magnet(const Eigen::Vector3d& pose) const {
     const double a = pose[0] * M_PI / 180, b = pose[1] * M_PI / 180;
     const Eigen::Matrix3d r = (Eigen::AngleAxisd(b, Eigen::Vector3d::UnitY()) *
-                               Eigen::AngleAxisd(a, Eigen::Vector3d::UnitX())).toRotationMatrix();
+                               Eigen::AngleAxisd(a, Eigen::Vector3d::UnitX()))
+                                  .toRotationMatrix();
     const Eigen::Vector3d pos = r * Eigen::Vector3d(0.4, 0, -1.5) + Eigen::Vector3d(0, 0, pose[2]);
     const Eigen::Vector3d m = r * Eigen::Vector3d(0, 0, 1);
     const Eigen::Vector3d d = Eigen::Vector3d(0, 0, -4.0) - pos;
@@ -60,10 +62,12 @@ struct SyntheticHallRig {
     for (int64_t tau = start; tau < offset_us + seconds * Rate(); tau += 1000) {
       const double t = (tau - offset_us) / Rate();
       const Eigen::Vector3d b = Field(t - delay_s, magnet, shift);
-      rec.readings.push_back({tau, b.x() + noise(rng), b.y() + noise(rng), b.z() + noise(rng)});
+      rec.readings.push_back(
+          {static_cast<double>(tau), b.x() + noise(rng), b.y() + noise(rng), b.z() + noise(rng)});
     }
     for (int k = 0; k * period < seconds; ++k)
-      rec.clock_edges_us.push_back(static_cast<int64_t>(std::llround(offset_us + Rate() * k * period)));
+      rec.clock_edges_us.push_back(
+          static_cast<double>(std::llround(offset_us + Rate() * k * period)));
     return rec;
   }
 
@@ -75,7 +79,8 @@ struct SyntheticHallRig {
     for (int j = 0; j < n; ++j) {
       PoseSample s;
       s.t_s = u(rng);
-      s.pose = Pose(s.t_s) + Eigen::Vector3d(sigma_deg * g(rng), sigma_deg * g(rng), sigma_mm * g(rng));
+      s.pose =
+          Pose(s.t_s) + Eigen::Vector3d(sigma_deg * g(rng), sigma_deg * g(rng), sigma_mm * g(rng));
       out.push_back(s);
     }
     return out;
