@@ -500,6 +500,9 @@ void RefineDotsOnBackgrounds(const std::vector<std::vector<size_t>>& groups,
     for (size_t i : groups[g]) {
       group_of[i] = static_cast<int>(g);
       const auto& m = (*measured)[i];
+      // Only images whose board was found take part (their dots are the ones used, and only
+      // they are read again below).
+      if (m.boards.empty() || !m.boards.back()) continue;
       for (size_t k = 0; k < m.dots.size(); ++k) windows[g].push_back({i, k});
     }
   }
@@ -647,17 +650,16 @@ ImageMeasurement MeasureFrame(const cv::Mat& img, const std::vector<vision::Boar
   // gamma): it is compared with the smaller of the brightest and that headroom.
   const double full = img.depth() == CV_16U ? 65535.0 : 255.0;
   const size_t before_peak = dots2.size();
-  dots2.erase(std::remove_if(dots2.begin(), dots2.end(),
-                             [&](const vision::Dot& d) {
-                               // Only a clipped spot is excused by its headroom.
-                               const bool clipped =
-                                   d.peak_level >= std::min(d.plateau_level, 0.98 * full);
-                               const double headroom = full - (d.peak_level - d.peak);
-                               const double reference =
-                                   clipped ? std::min(brightest, headroom) : brightest;
-                               return d.peak < o.adaptive_min_relative_peak * reference;
-                             }),
-              dots2.end());
+  dots2.erase(
+      std::remove_if(dots2.begin(), dots2.end(),
+                     [&](const vision::Dot& d) {
+                       // Only a clipped spot is excused by its headroom.
+                       const bool clipped = d.peak_level >= std::min(d.plateau_level, 0.98 * full);
+                       const double headroom = full - (d.peak_level - d.peak);
+                       const double reference = clipped ? std::min(brightest, headroom) : brightest;
+                       return d.peak < o.adaptive_min_relative_peak * reference;
+                     }),
+      dots2.end());
   rej2.too_faint = static_cast<int>(before_peak - dots2.size());
   // The second pass adds to the first: its dots that no first-pass dot's blob already covers
   // (a larger kernel can merge or lose a spot the first pass had).

@@ -237,7 +237,7 @@ def run(msmcal, mode):
                      text)
             with open(os.path.join(out, "session_log.txt")) as f:
                 log = f.read()
-            if "interrupted (SIGINT/SIGTERM)" not in log or "generator outputs off" not in log:
+            if "interrupted (signal)" not in log or "generator outputs off" not in log:
                 fail("session_log.txt does not record the interrupt and the safe state", log)
             print("ok: Ctrl-C at a step-1 prompt: status %d, outputs off" % status)
         else:
