@@ -94,18 +94,11 @@ Eigen::VectorXd Features(double t, bool slow_on, double wf, double ws, bool harm
   return f;
 }
 
-// Board (c, r) -> image homography of a detection, in squares.
-cv::Matx33d BoardHomography(const vision::CheckerboardDetection& board, vision::BoardSize size) {
-  std::vector<cv::Point2f> src, dst;
-  for (int r = 0; r < size.rows; ++r)
-    for (int c = 0; c < size.cols; ++c) {
-      src.emplace_back(static_cast<float>(c), static_cast<float>(r));
-      const auto& p = board.corners_px[r * size.cols + c];
-      dst.emplace_back(static_cast<float>(p.x()), static_cast<float>(p.y()));
-    }
-  const cv::Mat h = cv::findHomography(src, dst, 0);
-  if (h.empty()) return cv::Matx33d::eye();
-  return cv::Matx33d(h);
+// Board (c, r) -> image homography of a detection, in squares (identity if it cannot be fitted).
+cv::Matx33d BoardHomographyOrIdentity(const vision::CheckerboardDetection& board,
+                                      vision::BoardSize size) {
+  const cv::Mat h = vision::BoardHomography(board, size);
+  return h.empty() ? cv::Matx33d::eye() : cv::Matx33d(h);
 }
 
 // Elongation (ratio of principal std devs) of a blob's shape mapped into the board's plane: a
@@ -151,6 +144,20 @@ struct RegionRejections {
   int surface_elongated = 0;  // elongated in the board's plane
 };
 
+// The frame's dots on its board's plane, and the blobs refused there, into its detection row.
+void RecordDots(const std::vector<vision::Dot>& on_plane, const std::vector<vision::Dot>& all,
+                const RegionRejections& region, FrameDetection* fd) {
+  fd->dots_found = static_cast<int>(on_plane.size());
+  fd->off_plane = region.off_plane;
+  fd->junction = region.junction;
+  fd->surface_elongated = region.surface_elongated;
+  for (const auto& d : on_plane) fd->dots_px.push_back(d.px);
+  for (const auto& d : all)
+    if (std::none_of(on_plane.begin(), on_plane.end(),
+                     [&](const vision::Dot& k) { return k.px == d.px; }))
+      fd->refused_px.push_back(d.px);
+}
+
 // Laser dots land on the board's plane: the blobs inside the board's squares area grown by
 // `margin_squares` (the plate or screen around the printed pattern), not inside `exclude` (the
 // other board's outline, grown by half a square), round in the board's plane.
@@ -164,7 +171,7 @@ std::vector<vision::Dot> DotsOnBoard(const std::vector<vision::Dot>& dots,
   // The host board's own printed area wins over the other board's outline (the sliding plate
   // may hide part of the world board in the image).
   const auto own_area = vision::SquaresOutline(board, size, 0.5);
-  const cv::Matx33d h = BoardHomography(board, size);
+  const cv::Matx33d h = BoardHomographyOrIdentity(board, size);
   const double junction_px = o.junction_exclusion_squares * board.square_px;
   std::vector<vision::Dot> out;
   for (const auto& d : dots) {
@@ -907,15 +914,7 @@ SolveOutput SolveRecording(const dataset::Recording& input, const ImageLoader& i
                             boards[0] ? vision::SquaresOutline(*boards[0], world_size, 0.5)
                                       : std::vector<Eigen::Vector2d>{},
                             &region);
-    fd.dots_found = static_cast<int>(dots.size());
-    fd.off_plane = region.off_plane;
-    fd.junction = region.junction;
-    fd.surface_elongated = region.surface_elongated;
-    for (const auto& d : dots) fd.dots_px.push_back(d.px);
-    for (const auto& d : m.dots)
-      if (std::none_of(dots.begin(), dots.end(),
-                       [&](const vision::Dot& k) { return k.px == d.px; }))
-        fd.refused_px.push_back(d.px);
+    RecordDots(dots, m.dots, region, &fd);
     if (f.beams.empty() && !dots.empty()) {
       out.notes.push_back(f.file + ": background frame (every beam blocked) shows " +
                           std::to_string(dots.size()) + " dot-like blob(s); ignored");
@@ -1138,15 +1137,7 @@ SolveOutput SolveRecording(const dataset::Recording& input, const ImageLoader& i
     RegionRejections region;
     const auto dots =
         DotsOnBoard(m.dots, *board, world_size, o.step2_dot_margin_squares, o, {}, &region);
-    fd.dots_found = static_cast<int>(dots.size());
-    fd.off_plane = region.off_plane;
-    fd.junction = region.junction;
-    fd.surface_elongated = region.surface_elongated;
-    for (const auto& d : dots) fd.dots_px.push_back(d.px);
-    for (const auto& d : m.dots)
-      if (std::none_of(dots.begin(), dots.end(),
-                       [&](const vision::Dot& k) { return k.px == d.px; }))
-        fd.refused_px.push_back(d.px);
+    RecordDots(dots, m.dots, region, &fd);
     if (auto t = SolvePlanarPnP(rec.camera, world_pts, board->corners_px))
       fd.boards[0].corner_rms_px = ReprojectionRms(rec.camera, *t, world_pts, board->corners_px);
     // Fewer dots than expected (two spots merged, one off the board): the triggers whose dots

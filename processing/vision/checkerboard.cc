@@ -271,8 +271,7 @@ std::vector<char> CornersClearOfSpots(const CheckerboardDetection& board,
   return clear;
 }
 
-std::vector<Eigen::Vector2d> SquaresOutline(const CheckerboardDetection& board, BoardSize size,
-                                            double margin) {
+cv::Mat BoardHomography(const CheckerboardDetection& board, BoardSize size) {
   std::vector<cv::Point2f> src, dst;
   for (int r = 0; r < size.rows; ++r)
     for (int c = 0; c < size.cols; ++c) {
@@ -280,7 +279,12 @@ std::vector<Eigen::Vector2d> SquaresOutline(const CheckerboardDetection& board, 
       const auto& p = board.corners_px[r * size.cols + c];
       dst.emplace_back(static_cast<float>(p.x()), static_cast<float>(p.y()));
     }
-  const cv::Mat h = cv::findHomography(src, dst, 0);
+  return cv::findHomography(src, dst, 0);
+}
+
+std::vector<Eigen::Vector2d> SquaresOutline(const CheckerboardDetection& board, BoardSize size,
+                                            double margin) {
+  const cv::Mat h = BoardHomography(board, size);
   const double lo = -1 - margin;
   const std::vector<cv::Point2f> outer = {
       {static_cast<float>(lo), static_cast<float>(lo)},

@@ -95,6 +95,10 @@ std::vector<std::optional<CheckerboardDetection>> DetectCheckerboards(
 std::vector<Eigen::Vector2d> CanonicalCornerOrder(const std::vector<Eigen::Vector2d>& grid,
                                                   BoardSize size, const cv::Mat& gray);
 
+// The homography (CV_64F 3 x 3; empty if it cannot be fitted) that maps board points in squares
+// (c, r) to the detection's pixels.
+cv::Mat BoardHomography(const CheckerboardDetection& board, BoardSize size);
+
 // The outline of the board's squares area in the image (board points (-1, -1), (cols, -1),
 // (cols, rows), (-1, rows) in squares, mapped by the homography of the detected corners), and
 // whether a pixel lies inside it grown by `margin_squares`.
