@@ -27,7 +27,7 @@ void BM_AppendHallReadings(benchmark::State& state) {
   std::vector<dataset::HallReading> batch(static_cast<size_t>(state.range(0)));
   int64_t t = 0;
   for (auto _ : state) {
-    for (auto& r : batch) r = {t += 1000, 12.5, -3.25, 40.0625};
+    for (auto& r : batch) r = {static_cast<double>(t += 1000), 12.5, -3.25, 40.0625};
     store->AppendHallReadings("actual", batch);
   }
   state.SetItemsProcessed(state.iterations() * state.range(0));

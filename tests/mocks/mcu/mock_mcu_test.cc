@@ -276,7 +276,7 @@ TEST(MockMcu, MargBoardStreamsMargReadings) {
 TEST(MockMcu, ReplaysARecordedSession) {
   dataset::HallRecording rec;
   for (int i = 0; i < 300; ++i) {
-    rec.readings.push_back({1000 * i + 17, 0.150 * i, -0.150 * i, 0.242 * (i % 7)});
+    rec.readings.push_back({1000.0 * i + 17, 0.150 * i, -0.150 * i, 0.242 * (i % 7)});
   }
   rec.clock_edges_us = {50, 100050, 200050};
   MockMcu mock({}, std::make_unique<ReplaySource>(rec));

@@ -56,7 +56,7 @@ SessionMetadata TestMetadata() {
 
 // Deterministic Hall reading number i (so a reopened store can be checked value for value).
 dataset::HallReading ReadingAt(int64_t i) {
-  return {1000 * i, std::sin(0.001 * i) * 1e3, -std::cos(0.002 * i),
+  return {1000.0 * static_cast<double>(i), std::sin(0.001 * i) * 1e3, -std::cos(0.002 * i),
           i % 7 == 0 ? -0.0 : 1e-300 * i};
 }
 

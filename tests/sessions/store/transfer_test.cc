@@ -72,7 +72,7 @@ dataset::Recording MakeFolder(const fs::path& dir) {
   for (const auto& f : r.step2) interchange::WriteImageAtomically(dir / f.file, bgr);
   dataset::HallRecording hall;
   for (int i = 0; i < 300; ++i) {
-    hall.readings.push_back({1000 * i + 7, 0.1 * i, -1e-9 * i, i % 2 ? -0.0 : 1e300});
+    hall.readings.push_back({1000.0 * i + 7, 0.1 * i, -1e-9 * i, i % 2 ? -0.0 : 1e300});
   }
   hall.clock_edges_us = {5, 200005, 400005};
   r.hall_actual = hall;
