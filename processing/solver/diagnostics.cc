@@ -7,6 +7,8 @@
 #include <opencv2/imgproc.hpp>
 #include <sstream>
 
+#include "processing/vision/checkerboard.h"
+
 namespace msmcal::solver {
 namespace {
 
@@ -39,22 +41,7 @@ std::string Pattern(const std::string& reason) {
       out += c;
     }
   }
-  // File names in the reason ("step1/0004.png") are not part of the problem.
   return out;
-}
-
-cv::Mat ToBgr8(const cv::Mat& image) {
-  cv::Mat img8;
-  if (image.depth() == CV_16U)
-    image.convertTo(img8, CV_8U, 1.0 / 257.0);
-  else
-    img8 = image;
-  cv::Mat bgr;
-  if (img8.channels() == 1)
-    cv::cvtColor(img8, bgr, cv::COLOR_GRAY2BGR);
-  else
-    bgr = img8.clone();
-  return bgr;
 }
 
 }  // namespace
@@ -119,7 +106,7 @@ std::string FormatDetectionsCsv(const std::vector<FrameDetection>& detections) {
 }
 
 cv::Mat AnnotateFrame(const cv::Mat& image, const FrameDetection& d) {
-  cv::Mat out = ToBgr8(image);
+  cv::Mat out = vision::ToBgr8(image, "AnnotateFrame");
   const double scale = std::max(1.0, std::max(out.cols, out.rows) / 1600.0);
   const int thick = std::max(1, static_cast<int>(std::lround(scale)));
   auto pt = [](const Eigen::Vector2d& p) {

@@ -56,6 +56,26 @@ cv::Mat ToGray8(const cv::Mat& image) {
   return gray;
 }
 
+cv::Mat ToBgr8(const cv::Mat& image, const std::string& what) {
+  if (image.empty()) throw std::invalid_argument(what + ": empty image");
+  if (image.depth() != CV_8U && image.depth() != CV_16U)
+    throw std::invalid_argument(what + ": image depth must be 8 or 16 bit");
+  if (image.channels() != 1 && image.channels() != 3)
+    throw std::invalid_argument(what + ": image must have 1 or 3 channels, not " +
+                                std::to_string(image.channels()));
+  cv::Mat eight;
+  if (image.depth() == CV_16U)
+    image.convertTo(eight, CV_8U, 1.0 / 257.0);
+  else
+    eight = image;
+  cv::Mat bgr;
+  if (eight.channels() == 1)
+    cv::cvtColor(eight, bgr, cv::COLOR_GRAY2BGR);
+  else
+    bgr = eight.clone();
+  return bgr;
+}
+
 std::vector<Eigen::Vector2d> CanonicalCornerOrder(const std::vector<Eigen::Vector2d>& grid,
                                                   BoardSize size, const cv::Mat& gray) {
   const int cols = size.cols, rows = size.rows;

@@ -108,5 +108,8 @@ bool InsideOutline(const std::vector<Eigen::Vector2d>& outline, const Eigen::Vec
 
 // 8-bit single-channel version of an image (BGR -> gray, 16-bit -> scaled).
 cv::Mat ToGray8(const cv::Mat& image);
+// 8-bit BGR copy of an image (gray -> BGR, 16-bit -> scaled by 1/257), for drawing on. Throws
+// std::invalid_argument for an empty image or other depths / channel counts, naming `what`.
+cv::Mat ToBgr8(const cv::Mat& image, const std::string& what = "ToBgr8");
 
 }  // namespace msmcal::vision

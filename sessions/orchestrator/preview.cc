@@ -9,6 +9,7 @@
 #include <stdexcept>
 #include <utility>
 
+#include "processing/vision/checkerboard.h"
 #include "sessions/interchange/interchange_io.h"
 
 namespace msmcal::orchestrator {
@@ -26,25 +27,7 @@ cv::Point ToText(const cv::Point& shifted, int dx, int dy) {
   return {shifted.x / static_cast<int>(kOne) + dx, shifted.y / static_cast<int>(kOne) + dy};
 }
 
-cv::Mat ToBgr8(const cv::Mat& image) {
-  if (image.empty()) throw std::invalid_argument("AnnotatePreview: empty image");
-  if (image.depth() != CV_8U && image.depth() != CV_16U)
-    throw std::invalid_argument("AnnotatePreview: image depth must be 8 or 16 bit");
-  if (image.channels() != 1 && image.channels() != 3)
-    throw std::invalid_argument("AnnotatePreview: image must have 1 or 3 channels, not " +
-                                std::to_string(image.channels()));
-  cv::Mat eight;
-  if (image.depth() == CV_16U)
-    image.convertTo(eight, CV_8U, 1.0 / 257.0);
-  else
-    eight = image;
-  cv::Mat bgr;
-  if (eight.channels() == 1)
-    cv::cvtColor(eight, bgr, cv::COLOR_GRAY2BGR);
-  else
-    bgr = eight.clone();
-  return bgr;
-}
+cv::Mat ToBgr8(const cv::Mat& image) { return vision::ToBgr8(image, "AnnotatePreview"); }
 
 }  // namespace
 
