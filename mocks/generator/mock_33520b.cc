@@ -31,6 +31,93 @@ double MaxVpp(double load_ohm) {
 }
 double MinVpp(double load_ohm) { return MaxVpp(load_ohm) / 10000.0; }
 
+// Highest frequency of each function on the 30 MHz 33520B (ramp and triangle: 200 kHz).
+double MaxFrequency(Function f) {
+  return (f == Function::kRamp || f == Function::kTriangle) ? 200e3 : 30e6;
+}
+
+// Vpp per Vrms (crest factor x 2) for VOLTage:UNIT VRMS and DBM. Sine, arb, noise and DC use
+// the sine's factor (the instrument computes arbs from their samples; the mock does not).
+double VppPerVrms(Function f) {
+  switch (f) {
+    case Function::kSquare:
+    case Function::kPulse:
+    case Function::kPrbs:
+      return 2.0;
+    case Function::kRamp:
+    case Function::kTriangle:
+      return 2.0 * std::sqrt(3.0);
+    default:
+      return 2.0 * std::sqrt(2.0);
+  }
+}
+
+double ToVpp(double v, VoltageUnit u, const ChannelSignal& ch) {
+  switch (u) {
+    case VoltageUnit::kVpp:
+      return v;
+    case VoltageUnit::kVrms:
+      return v * VppPerVrms(ch.function);
+    case VoltageUnit::kDbm:
+      return std::sqrt(1e-3 * std::pow(10.0, v / 10.0) * ch.load_ohm) * VppPerVrms(ch.function);
+  }
+  return v;
+}
+
+double FromVpp(double vpp, VoltageUnit u, const ChannelSignal& ch) {
+  switch (u) {
+    case VoltageUnit::kVpp:
+      return vpp;
+    case VoltageUnit::kVrms:
+      return vpp / VppPerVrms(ch.function);
+    case VoltageUnit::kDbm: {
+      const double vrms = vpp / VppPerVrms(ch.function);
+      return 10.0 * std::log10(vrms * vrms / ch.load_ohm / 1e-3);
+    }
+  }
+  return vpp;
+}
+
+const char* VoltageUnitName(VoltageUnit u) {
+  return u == VoltageUnit::kVrms ? "VRMS" : u == VoltageUnit::kDbm ? "DBM" : "VPP";
+}
+
+constexpr double kMinPulseWidth = 16e-9;  // 33520B
+constexpr double kMinEdge = 8.4e-9, kMaxEdge = 1e-6;
+
+// Keeps a pulse realisable: width within [16 ns, period - 16 ns], each edge at most 0.625 of
+// the shorter of width and period - width (edges give way first). Returns whether it changed
+// anything.
+bool FitPulse(ChannelSignal& ch) {
+  const double period = 1.0 / ch.frequency_hz;
+  bool changed = false;
+  const double wmax = std::max(kMinPulseWidth, period - kMinPulseWidth);
+  if (ch.pulse_width_s < kMinPulseWidth || ch.pulse_width_s > wmax) {
+    ch.pulse_width_s = std::clamp(ch.pulse_width_s, kMinPulseWidth, wmax);
+    changed = true;
+  }
+  const double cap =
+      std::max(kMinEdge, 0.625 * std::min(ch.pulse_width_s, period - ch.pulse_width_s));
+  for (double* e : {&ch.pulse_lead_s, &ch.pulse_trail_s}) {
+    if (*e > cap * (1 + 1e-12)) {
+      *e = cap;
+      changed = true;
+    }
+  }
+  return changed;
+}
+
+// 7-bit PRBS (x^7 + x^6 + 1), bit k of the sequence started from all ones.
+bool PrbsBit(int64_t k) {
+  uint32_t lfsr = 0x7F;
+  const int64_t n = ((k % 127) + 127) % 127;
+  for (int64_t i = 0; i < n; ++i) {
+    const uint32_t bit = ((lfsr >> 6) ^ (lfsr >> 5)) & 1u;
+    lfsr = ((lfsr << 1) | bit) & 0x7Fu;
+  }
+  return (lfsr & 1u) != 0;
+}
+
 }  // namespace
 
 const char* FunctionName(Function f) {
@@ -49,6 +136,10 @@ const char* FunctionName(Function f) {
       return "RAMP";
     case Function::kNoise:
       return "NOIS";
+    case Function::kTriangle:
+      return "TRI";
+    case Function::kPrbs:
+      return "PRBS";
   }
   return "SIN";
 }
@@ -92,21 +183,75 @@ struct Mock33520B::Context {
     if (MatchMnemonic("DEFault", t)) return def;
     const auto v = ParseNumericWithUnit(t, unit_name);
     if (!v) {
-      const bool numeric_start = !t.empty() && (std::isdigit(static_cast<unsigned char>(t[0])) ||
-                                                t[0] == '+' || t[0] == '-' || t[0] == '.');
-      unit.PushError(numeric_start ? -131 : -104,
-                     numeric_start ? "Invalid suffix" : "Data type error");
+      BadNumber(t);
       return std::nullopt;
     }
-    if (*v < lo) {
+    return Clip(*v, lo, hi);
+  }
+
+  // -131 for a number with a suffix this header does not take, -104 for a non-number.
+  void BadNumber(const std::string& t) {
+    const bool numeric_start = !t.empty() && (std::isdigit(static_cast<unsigned char>(t[0])) ||
+                                              t[0] == '+' || t[0] == '-' || t[0] == '.');
+    unit.PushError(numeric_start ? -131 : -104,
+                   numeric_start ? "Invalid suffix" : "Data type error");
+  }
+
+  // Clips to [lo, hi] with -222, as the instrument does.
+  double Clip(double v, double lo, double hi) {
+    if (v < lo) {
       unit.PushError(-222, "Data out of range;value clipped to lower limit");
       return lo;
     }
-    if (*v > hi) {
+    if (v > hi) {
       unit.PushError(-222, "Data out of range;value clipped to upper limit");
       return hi;
     }
     return v;
+  }
+
+  // Character data among `choices` (long forms like "WIDTh"); returns the short form, or
+  // pushes -224 and returns nullopt.
+  std::optional<std::string> Choice(std::initializer_list<const char*> choices) {
+    for (const char* c : choices) {
+      if (MatchMnemonic(c, cmd.params[0])) {
+        std::string short_form;
+        for (const char* p = c; *p; ++p) {
+          if (std::isupper(static_cast<unsigned char>(*p)) || std::isdigit(*p)) short_form += *p;
+        }
+        return short_form;
+      }
+    }
+    unit.PushError(-224, "Illegal parameter value");
+    return std::nullopt;
+  }
+
+  // An angle (PHASe, BURSt:PHASe) in the UNIT:ANGLe unit, or with a DEG/RAD suffix, as degrees
+  // clipped to +-360 degrees (+-2 pi rad, +-1 period in SEC) with -222.
+  std::optional<double> AngleDeg(const ChannelSignal& ch) {
+    const std::string t = Upper(cmd.params[0]);
+    if (MatchMnemonic("MINimum", t)) return -360.0;
+    if (MatchMnemonic("MAXimum", t)) return 360.0;
+    if (MatchMnemonic("DEFault", t)) return 0.0;
+    double deg = 0;
+    if (auto v = ParseNumericWithUnit(t, "")) {
+      deg = unit.angle_unit_ == "RAD"   ? *v * 180.0 / kPi
+            : unit.angle_unit_ == "SEC" ? *v * ch.frequency_hz * 360.0
+                                        : *v;
+    } else if (auto d = ParseNumericWithUnit(t, "DEG")) {
+      deg = *d;
+    } else if (auto r = ParseNumericWithUnit(t, "RAD")) {
+      deg = *r * 180.0 / kPi;
+    } else {
+      BadNumber(t);
+      return std::nullopt;
+    }
+    return Clip(deg, -360.0, 360.0);
+  }
+  std::string AngleReply(double deg, const ChannelSignal& ch) const {
+    if (unit.angle_unit_ == "RAD") return FormatReplyNumber(deg * kPi / 180.0);
+    if (unit.angle_unit_ == "SEC") return FormatReplyNumber(deg / 360.0 / ch.frequency_hz);
+    return FormatReplyNumber(deg);
   }
 
   // MIN/MAX query argument ("FREQ? MAX"), else the current value.
@@ -143,6 +288,8 @@ void Mock33520B::ResetLocked() {
   border_big_endian_ = true;
   rosc_source_ = "INT";
   trigger_out_ = false;
+  angle_unit_ = "DEG";
+  display_text_.clear();
 }
 
 void Mock33520B::PushError(int code, const std::string& message) {
@@ -198,6 +345,16 @@ size_t Mock33520B::ErrorCount() const {
   return errors_.size();
 }
 
+void Mock33520B::ReportInputOverrun() {
+  std::lock_guard lock(mu_);
+  PushError(-363, "Input buffer overrun");
+}
+
+uint64_t Mock33520B::ParseWork() const {
+  std::lock_guard lock(mu_);
+  return work_;
+}
+
 uint64_t Mock33520B::StateVersion() const {
   std::lock_guard lock(mu_);
   return version_;
@@ -221,29 +378,42 @@ double Mock33520B::SignalAt(int channel, int64_t t_ns) const {
   std::lock_guard lock(mu_);
   const ChannelSignal& c = ch_[channel - 1];
   if (!c.output_on) return 0.0;
-  const double tau = (!c.running || t_ns < c.start_time_ns)
-                         ? 0.0
-                         : static_cast<double>(t_ns - c.start_time_ns) * 1e-9;
+  const bool finite = c.burst_on && !std::isinf(c.burst_ncycles);
+  const bool repeating = finite && c.trigger_source == TriggerSource::kImmediate;
+  const bool active = c.burst_on ? (!c.burst_gated && (c.running || repeating)) : c.running;
+  double tau = (!active || t_ns < c.start_time_ns)
+                   ? 0.0
+                   : static_cast<double>(t_ns - c.start_time_ns) * 1e-9;
+  if (repeating) tau = std::fmod(tau, c.burst_period_s);
+  if (finite && c.frequency_hz * tau >= c.burst_ncycles) tau = 0.0;  // burst done: idle level
   const double phase_cycles = (c.burst_on ? c.burst_phase_deg : c.phase_deg) / 360.0;
+  const double cycle = Frac(c.frequency_hz * tau + phase_cycles);
+  const double sign = c.output_polarity == "INV" ? -1.0 : 1.0;
+  const double half = 0.5 * c.amplitude_vpp * sign;
   switch (c.function) {
     case Function::kSin:
-      return c.offset_v +
-             0.5 * c.amplitude_vpp * std::sin(2 * kPi * (c.frequency_hz * tau + phase_cycles));
+      return c.offset_v + half * std::sin(2 * kPi * cycle);
     case Function::kSquare:
-    case Function::kPulse: {
-      const double f = Frac(c.frequency_hz * tau + phase_cycles);
-      return c.offset_v + (f < c.square_duty_percent / 100.0 ? 0.5 : -0.5) * c.amplitude_vpp;
-    }
+      return c.offset_v + (cycle < c.square_duty_percent / 100.0 ? half : -half);
+    case Function::kPulse:
+      return c.offset_v + (cycle < c.pulse_width_s * c.frequency_hz ? half : -half);
     case Function::kRamp:
-      return c.offset_v +
-             0.5 * c.amplitude_vpp * (2.0 * Frac(c.frequency_hz * tau + phase_cycles) - 1.0);
+    case Function::kTriangle: {
+      const double s = c.function == Function::kTriangle ? 0.5 : c.ramp_symmetry_percent / 100.0;
+      const double y = cycle < s ? cycle / s : 1.0 - (cycle - s) / (1.0 - s);
+      return c.offset_v + half * (2.0 * y - 1.0);
+    }
+    case Function::kPrbs: {
+      const auto k = static_cast<int64_t>(std::floor(c.frequency_hz * tau + phase_cycles));
+      return c.offset_v + (PrbsBit(k) ? half : -half);
+    }
     case Function::kArb: {
       if (!c.arb_samples || c.arb_samples->empty()) return c.offset_v;
       const double n = static_cast<double>(c.arb_samples->size());
       const double f = Frac(tau * c.arb_sample_rate_sps / n + phase_cycles);
       size_t k = static_cast<size_t>(std::floor(f * n + 1e-9));
       if (k >= c.arb_samples->size()) k = 0;
-      return c.offset_v + 0.5 * c.arb_ptpeak_v * (*c.arb_samples)[k] / 32767.0;
+      return c.offset_v + 0.5 * c.arb_ptpeak_v * sign * (*c.arb_samples)[k] / 32767.0;
     }
     case Function::kDc:
     case Function::kNoise:
@@ -252,44 +422,64 @@ double Mock33520B::SignalAt(int channel, int64_t t_ns) const {
   return 0.0;
 }
 
+std::optional<std::string> Mock33520B::ExecuteLocked(const CommandUnit& unit,
+                                                     std::vector<std::string>& path) {
+  // No header is deeper than the deepest pattern: such a unit is undefined and leaves the path
+  // where it was, so a compound line of N units costs O(N) however its headers nest.
+  const size_t depth = (unit.common || unit.absolute ? 0 : path.size()) + unit.nodes.size();
+  work_ += depth;
+  if (depth > max_header_nodes_) {
+    PushError(-113, "Undefined header");
+    return std::nullopt;
+  }
+  const std::vector<HeaderNode> nodes = SplitHeaderNodes(ResolvePath(unit, path));
+  for (const Entry& e : table_) {
+    if (e.query != unit.query) continue;
+    auto suffixes = e.pattern.Match(nodes, &work_);
+    if (!suffixes) continue;
+    Context ctx{*this, *suffixes, unit, clock_()};
+    return e.handler(ctx);
+  }
+  PushError(-113, "Undefined header");
+  return std::nullopt;
+}
+
 std::string Mock33520B::Process(const std::string& message_in) {
   std::lock_guard lock(mu_);
-  std::string message = message_in;
-  while (!message.empty() && (message.back() == '\r' || message.back() == '\n')) message.pop_back();
+  std::string_view message = message_in;
+  while (!message.empty() && (message.back() == '\r' || message.back() == '\n')) {
+    message.remove_suffix(1);
+  }
   const SplitResult split = SplitProgramMessage(message);
-  std::vector<std::string> replies;
+  work_ += message.size();
   std::vector<std::string> path;
-  const uint64_t version_before = version_;
+  std::string out;
+  size_t replies = 0;
+  bool overflowed = false;
   for (const CommandUnit& unit : split.units) {
-    const std::vector<std::string> nodes = ResolvePath(unit, path);
-    bool matched = false;
-    for (const Entry& e : table_) {
-      if (e.query != unit.query) continue;
-      auto suffixes = MatchHeader(e.pattern, nodes);
-      if (!suffixes) continue;
-      matched = true;
-      Context ctx{*this, *suffixes, unit, clock_()};
-      if (auto reply = e.handler(ctx)) replies.push_back(*reply);
-      break;
+    std::optional<std::string> reply = ExecuteLocked(unit, path);
+    if (!reply) continue;
+    if (out.size() + reply->size() + 1 > options_.max_response_bytes) {
+      if (!overflowed) PushError(-430, "Query DEADLOCKED");
+      overflowed = true;
+      continue;
     }
-    if (!matched) PushError(-113, "Undefined header");
+    if (replies++) out += ";";
+    out += *reply;
   }
   if (split.failure) PushError(split.failure->code, split.failure->message);
-  ++version_;
-  (void)version_before;
-  cv_.notify_all();
-  std::string out;
-  for (size_t i = 0; i < replies.size(); ++i) {
-    if (i) out += ";";
-    out += replies[i];
-  }
+  NotifyLocked();
   return out;
 }
 
 void Mock33520B::BuildTable() {
   using R = std::optional<std::string>;
-  auto set = [this](std::string p, Handler h) { table_.push_back({std::move(p), false, h}); };
-  auto get = [this](std::string p, Handler h) { table_.push_back({std::move(p), true, h}); };
+  auto set = [this](const char* p, Handler h) {
+    table_.push_back({HeaderPattern(p), false, std::move(h)});
+  };
+  auto get = [this](const char* p, Handler h) {
+    table_.push_back({HeaderPattern(p), true, std::move(h)});
+  };
   const R none = std::nullopt;
 
   // IEEE 488.2 common commands.
@@ -330,14 +520,26 @@ void Mock33520B::BuildTable() {
     ChannelSignal* ch = c.Channel();
     if (!ch || !c.ParamCount(1, 1)) return none;
     static const std::pair<const char*, Function> kNames[] = {
-        {"SINusoid", Function::kSin},  {"SQUare", Function::kSquare}, {"PULSe", Function::kPulse},
-        {"ARBitrary", Function::kArb}, {"DC", Function::kDc},         {"RAMP", Function::kRamp},
-        {"NOISe", Function::kNoise}};
+        {"SINusoid", Function::kSin}, {"SQUare", Function::kSquare},
+        {"PULSe", Function::kPulse},  {"ARBitrary", Function::kArb},
+        {"DC", Function::kDc},        {"RAMP", Function::kRamp},
+        {"NOISe", Function::kNoise},  {"TRIangle", Function::kTriangle},
+        {"PRBS", Function::kPrbs}};
     for (const auto& [name, f] : kNames) {
-      if (MatchMnemonic(name, c.cmd.params[0])) {
-        ch->function = f;
+      if (!MatchMnemonic(name, c.cmd.params[0])) continue;
+      if (ch->burst_on && (f == Function::kDc || (f == Function::kNoise && !ch->burst_gated))) {
+        PushError(-221, "Settings conflict;function not allowed in this burst mode");
         return none;
       }
+      ch->function = f;
+      if (ch->frequency_hz > MaxFrequency(f)) {
+        ch->frequency_hz = MaxFrequency(f);
+        PushError(-221, "Settings conflict;frequency reduced to the function's maximum");
+      }
+      if (f == Function::kPulse && FitPulse(*ch)) {
+        PushError(-221, "Settings conflict;pulse width or edge time adjusted");
+      }
+      return none;
     }
     PushError(-224, "Illegal parameter value");
     return none;
@@ -349,39 +551,132 @@ void Mock33520B::BuildTable() {
   });
 
   // Frequency.
-  set("[SOURce#:]FREQuency[:CW]", [none](Context& c) {
+  // A new period keeps the pulse width (HOLD WIDTh) or its duty cycle (HOLD DCYCle).
+  auto set_frequency = [this](ChannelSignal& ch, double f) {
+    if (ch.pulse_hold == "DCYC") ch.pulse_width_s *= ch.frequency_hz / f;
+    ch.frequency_hz = f;
+    if (FitPulse(ch) && ch.function == Function::kPulse) {
+      PushError(-221, "Settings conflict;pulse width or edge time adjusted");
+    }
+  };
+  set("[SOURce#:]FREQuency[:CW]", [none, set_frequency](Context& c) {
     ChannelSignal* ch = c.Channel();
     if (!ch || !c.ParamCount(1, 1)) return none;
-    const double hi = ch->function == Function::kRamp ? 200e3 : 30e6;
-    if (auto v = c.Number(0, "HZ", 1e-6, hi, 1000.0)) ch->frequency_hz = *v;
+    if (auto v = c.Number(0, "HZ", 1e-6, MaxFrequency(ch->function), 1000.0)) {
+      set_frequency(*ch, *v);
+    }
     return none;
   });
   get("[SOURce#:]FREQuency[:CW]", [](Context& c) -> R {
     ChannelSignal* ch = c.Channel();
     if (!ch) return std::nullopt;
-    return FormatReplyNumber(c.QueryValue(ch->frequency_hz, 1e-6, 30e6, 1000.0));
+    return FormatReplyNumber(
+        c.QueryValue(ch->frequency_hz, 1e-6, MaxFrequency(ch->function), 1000.0));
   });
 
   // Amplitude and offset (into the configured load).
+  // Amplitude in the channel's VOLTage:UNIT, or in the unit its suffix names (VPP, VRMS, DBM).
   set("[SOURce#:]VOLTage[:LEVel][:IMMediate][:AMPLitude]", [this, none](Context& c) {
     ChannelSignal* ch = c.Channel();
     if (!ch || !c.ParamCount(1, 1)) return none;
     const double lo = MinVpp(ch->load_ohm), hi = MaxVpp(ch->load_ohm);
-    if (auto v = c.Number(0, "VPP|V", lo, hi, 0.1)) {
-      if (std::abs(ch->offset_v) + *v / 2 > hi / 2 + 1e-12) {
-        PushError(-221, "Settings conflict;amplitude and offset exceed the output range");
-      } else {
-        ch->amplitude_vpp = *v;
+    const std::string t = Upper(c.cmd.params[0]);
+    std::optional<double> vpp;
+    if (MatchMnemonic("MINimum", t)) {
+      vpp = lo;
+    } else if (MatchMnemonic("MAXimum", t)) {
+      vpp = hi;
+    } else if (MatchMnemonic("DEFault", t)) {
+      vpp = 0.1;
+    } else {
+      std::optional<VoltageUnit> unit;
+      std::optional<double> v;
+      if ((v = ParseNumericWithUnit(t, ""))) {
+        unit = ch->voltage_unit;
+      } else if ((v = ParseNumericWithUnit(t, "VRMS"))) {
+        unit = VoltageUnit::kVrms;
+      } else if ((v = ParseNumericWithUnit(t, "DBM"))) {
+        unit = VoltageUnit::kDbm;
+      } else if ((v = ParseNumericWithUnit(t, "VPP|V"))) {
+        unit = VoltageUnit::kVpp;
       }
+      if (!v) {
+        c.BadNumber(t);
+        return none;
+      }
+      if (*unit == VoltageUnit::kDbm && std::isinf(ch->load_ohm)) {
+        PushError(-221, "Settings conflict;dBm needs a finite output load");
+        return none;
+      }
+      vpp = c.Clip(ToVpp(*v, *unit, *ch), lo, hi);
+    }
+    if (std::abs(ch->offset_v) + *vpp / 2 > hi / 2 + 1e-12) {
+      PushError(-221, "Settings conflict;amplitude and offset exceed the output range");
+    } else {
+      ch->amplitude_vpp = *vpp;
     }
     return none;
   });
   get("[SOURce#:]VOLTage[:LEVel][:IMMediate][:AMPLitude]", [](Context& c) -> R {
     ChannelSignal* ch = c.Channel();
     if (!ch) return std::nullopt;
-    return FormatReplyNumber(
-        c.QueryValue(ch->amplitude_vpp, MinVpp(ch->load_ohm), MaxVpp(ch->load_ohm), 0.1));
+    const double vpp =
+        c.QueryValue(ch->amplitude_vpp, MinVpp(ch->load_ohm), MaxVpp(ch->load_ohm), 0.1);
+    return FormatReplyNumber(FromVpp(vpp, ch->voltage_unit, *ch));
   });
+  set("[SOURce#:]VOLTage:UNIT", [this, none](Context& c) {
+    ChannelSignal* ch = c.Channel();
+    if (!ch || !c.ParamCount(1, 1)) return none;
+    const auto u = c.Choice({"VPP", "VRMS", "DBM"});
+    if (!u) return none;
+    if (*u == "DBM" && std::isinf(ch->load_ohm)) {
+      PushError(-221, "Settings conflict;dBm needs a finite output load");
+      return none;
+    }
+    ch->voltage_unit = *u == "VRMS"  ? VoltageUnit::kVrms
+                       : *u == "DBM" ? VoltageUnit::kDbm
+                                     : VoltageUnit::kVpp;
+    return none;
+  });
+  get("[SOURce#:]VOLTage:UNIT", [](Context& c) -> R {
+    ChannelSignal* ch = c.Channel();
+    if (!ch) return std::nullopt;
+    return std::string(VoltageUnitName(ch->voltage_unit));
+  });
+  // High and low levels: the same state as amplitude and offset (high = offset + Vpp / 2).
+  // Setting one keeps the other; a high level not above the low level by the minimum amplitude
+  // is refused with -221.
+  auto set_level = [this, none](Context& c, bool high) {
+    ChannelSignal* ch = c.Channel();
+    if (!ch || !c.ParamCount(1, 1)) return none;
+    const double lim = MaxVpp(ch->load_ohm) / 2;
+    const auto v = c.Number(0, "V", -lim, lim, high ? 0.05 : -0.05);
+    if (!v) return none;
+    const double hi = high ? *v : ch->offset_v + ch->amplitude_vpp / 2;
+    const double lo = high ? ch->offset_v - ch->amplitude_vpp / 2 : *v;
+    if (hi - lo < MinVpp(ch->load_ohm) * (1 - 1e-9)) {
+      PushError(-221, "Settings conflict;high level must exceed low level");
+      return none;
+    }
+    ch->amplitude_vpp = hi - lo;
+    ch->offset_v = (hi + lo) / 2;
+    return none;
+  };
+  auto get_level = [](Context& c, bool high) -> R {
+    ChannelSignal* ch = c.Channel();
+    if (!ch) return std::nullopt;
+    const double lim = MaxVpp(ch->load_ohm) / 2;
+    const double level = ch->offset_v + (high ? 0.5 : -0.5) * ch->amplitude_vpp;
+    return FormatReplyNumber(c.QueryValue(level, -lim, lim, high ? 0.05 : -0.05));
+  };
+  set("[SOURce#:]VOLTage[:LEVel][:IMMediate]:HIGH",
+      [set_level](Context& c) { return set_level(c, true); });
+  set("[SOURce#:]VOLTage[:LEVel][:IMMediate]:LOW",
+      [set_level](Context& c) { return set_level(c, false); });
+  get("[SOURce#:]VOLTage[:LEVel][:IMMediate]:HIGH",
+      [get_level](Context& c) { return get_level(c, true); });
+  get("[SOURce#:]VOLTage[:LEVel][:IMMediate]:LOW",
+      [get_level](Context& c) { return get_level(c, false); });
   set("[SOURce#:]VOLTage[:LEVel][:IMMediate]:OFFSet", [this, none](Context& c) {
     ChannelSignal* ch = c.Channel();
     if (!ch || !c.ParamCount(1, 1)) return none;
@@ -405,13 +700,13 @@ void Mock33520B::BuildTable() {
   set("[SOURce#:]PHASe[:ADJust]", [none](Context& c) {
     ChannelSignal* ch = c.Channel();
     if (!ch || !c.ParamCount(1, 1)) return none;
-    if (auto v = c.Number(0, "DEG", -360.0, 360.0, 0.0)) ch->phase_deg = *v;
+    if (auto v = c.AngleDeg(*ch)) ch->phase_deg = *v;
     return none;
   });
   get("[SOURce#:]PHASe[:ADJust]", [](Context& c) -> R {
     ChannelSignal* ch = c.Channel();
     if (!ch) return std::nullopt;
-    return FormatReplyNumber(ch->phase_deg);
+    return c.AngleReply(ch->phase_deg, *ch);
   });
   set("[SOURce#:]PHASe:SYNChronize", [this, none](Context& c) {
     for (ChannelSignal& ch : ch_) {
@@ -457,6 +752,7 @@ void Mock33520B::BuildTable() {
     const std::string t = Upper(c.cmd.params[0]);
     if (MatchMnemonic("INFinity", t)) {
       ch->load_ohm = kInf;
+      if (ch->voltage_unit == VoltageUnit::kDbm) ch->voltage_unit = VoltageUnit::kVpp;
     } else if (auto v = c.Number(0, "OHM", 1.0, 10e3, 50.0)) {
       ch->load_ohm = *v;
     }
@@ -694,9 +990,14 @@ void Mock33520B::BuildTable() {
       c.unit.PushError(-224, "Illegal parameter value");
       return none;
     }
+    if (*b &&
+        (ch->function == Function::kDc || (ch->function == Function::kNoise && !ch->burst_gated))) {
+      c.unit.PushError(-221, "Settings conflict;function not allowed in this burst mode");
+      return none;
+    }
     ch->burst_on = *b;
     ch->running = !*b;
-    if (!*b) ch->start_time_ns = c.now_ns;
+    ch->start_time_ns = c.now_ns;
     return none;
   });
   get("[SOURce#:]BURSt:STATe", [](Context& c) -> R {
@@ -707,27 +1008,65 @@ void Mock33520B::BuildTable() {
   set("[SOURce#:]BURSt:PHASe", [none](Context& c) {
     ChannelSignal* ch = c.Channel();
     if (!ch || !c.ParamCount(1, 1)) return none;
-    if (auto v = c.Number(0, "DEG", -360.0, 360.0, 0.0)) ch->burst_phase_deg = *v;
+    if (auto v = c.AngleDeg(*ch)) ch->burst_phase_deg = *v;
     return none;
   });
   get("[SOURce#:]BURSt:PHASe", [](Context& c) -> R {
     ChannelSignal* ch = c.Channel();
     if (!ch) return std::nullopt;
-    return FormatReplyNumber(ch->burst_phase_deg);
+    return c.AngleReply(ch->burst_phase_deg, *ch);
   });
-  set("[SOURce#:]BURSt:MODE", [this, none](Context& c) {
-    if (!c.Channel() || !c.ParamCount(1, 1)) return none;
-    if (!MatchMnemonic("TRIGgered", c.cmd.params[0])) {
-      PushError(-221, "Settings conflict;the mock models triggered bursts only");
+  set("[SOURce#:]BURSt:MODE", [none](Context& c) {
+    ChannelSignal* ch = c.Channel();
+    if (!ch || !c.ParamCount(1, 1)) return none;
+    if (auto m = c.Choice({"TRIGgered", "GATed"})) ch->burst_gated = *m == "GAT";
+    return none;
+  });
+  get("[SOURce#:]BURSt:MODE", [](Context& c) -> R {
+    ChannelSignal* ch = c.Channel();
+    if (!ch) return std::nullopt;
+    return std::string(ch->burst_gated ? "GAT" : "TRIG");
+  });
+  // A finite burst must fit its period (internal trigger): period > N / f + 1 us. A period too
+  // short is raised to fit, with -221, as the instrument does.
+  auto fit_burst_period = [this](ChannelSignal& ch) {
+    if (std::isinf(ch.burst_ncycles)) return;
+    const double need = ch.burst_ncycles / ch.frequency_hz + 1e-6;
+    if (ch.burst_period_s < need) {
+      ch.burst_period_s = std::min(need, 8000.0);
+      PushError(-221, "Settings conflict;burst period increased to fit the burst count");
+    }
+  };
+  set("[SOURce#:]BURSt:NCYCles", [none, fit_burst_period](Context& c) {
+    ChannelSignal* ch = c.Channel();
+    if (!ch || !c.ParamCount(1, 1)) return none;
+    if (MatchMnemonic("INFinity", c.cmd.params[0])) {
+      ch->burst_ncycles = kInf;
+    } else if (auto v = c.Number(0, "", 1.0, 1e8, 1.0)) {
+      ch->burst_ncycles = std::round(*v);
+      fit_burst_period(*ch);
     }
     return none;
   });
-  set("[SOURce#:]BURSt:NCYCles", [this, none](Context& c) {
-    if (!c.Channel() || !c.ParamCount(1, 1)) return none;
-    if (!MatchMnemonic("INFinity", c.cmd.params[0])) {
-      PushError(-221, "Settings conflict;the mock models infinite bursts only");
+  get("[SOURce#:]BURSt:NCYCles", [](Context& c) -> R {
+    ChannelSignal* ch = c.Channel();
+    if (!ch) return std::nullopt;
+    const double n = std::isinf(ch->burst_ncycles) ? kInfReply : ch->burst_ncycles;
+    return FormatReplyNumber(c.QueryValue(n, 1.0, 1e8, 1.0));
+  });
+  set("[SOURce#:]BURSt:INTernal:PERiod", [none, fit_burst_period](Context& c) {
+    ChannelSignal* ch = c.Channel();
+    if (!ch || !c.ParamCount(1, 1)) return none;
+    if (auto v = c.Number(0, "S", 1e-6, 8000.0, 10e-3)) {
+      ch->burst_period_s = *v;
+      fit_burst_period(*ch);
     }
     return none;
+  });
+  get("[SOURce#:]BURSt:INTernal:PERiod", [](Context& c) -> R {
+    ChannelSignal* ch = c.Channel();
+    if (!ch) return std::nullopt;
+    return FormatReplyNumber(c.QueryValue(ch->burst_period_s, 1e-6, 8000.0, 10e-3));
   });
   set("TRIGger#:SOURce", [none](Context& c) {
     ChannelSignal* ch = c.Channel();
@@ -761,6 +1100,173 @@ void Mock33520B::BuildTable() {
     }
     return std::string("IMM");
   });
+
+  // A character-data setting of a channel: the reply is the short form of the choice.
+  auto channel_choice = [&](const char* pattern, std::initializer_list<const char*> choices,
+                            std::string ChannelSignal::*field) {
+    set(pattern, [none, choices, field](Context& c) {
+      ChannelSignal* ch = c.Channel();
+      if (!ch || !c.ParamCount(1, 1)) return none;
+      if (auto v = c.Choice(choices)) (*ch).*field = *v;
+      return none;
+    });
+    get(pattern, [field](Context& c) -> R {
+      ChannelSignal* ch = c.Channel();
+      if (!ch) return std::nullopt;
+      return (*ch).*field;
+    });
+  };
+  // A numeric setting of a channel with fixed limits (clipped with -222, MIN/MAX/DEF).
+  auto channel_number = [&](const char* pattern, const char* unit_name, double lo, double hi,
+                            double def, double ChannelSignal::*field) {
+    set(pattern, [none, unit_name, lo, hi, def, field](Context& c) {
+      ChannelSignal* ch = c.Channel();
+      if (!ch || !c.ParamCount(1, 1)) return none;
+      if (auto v = c.Number(0, unit_name, lo, hi, def)) (*ch).*field = *v;
+      return none;
+    });
+    get(pattern, [lo, hi, def, field](Context& c) -> R {
+      ChannelSignal* ch = c.Channel();
+      if (!ch) return std::nullopt;
+      return FormatReplyNumber(c.QueryValue((*ch).*field, lo, hi, def));
+    });
+  };
+
+  channel_number("[SOURce#:]FUNCtion:RAMP:SYMMetry", "PCT", 0.0, 100.0, 100.0,
+                 &ChannelSignal::ramp_symmetry_percent);
+  channel_choice("[SOURce#:]FUNCtion:ARBitrary:ADVance", {"TRIGger", "SRATe"},
+                 &ChannelSignal::arb_advance);
+  channel_choice("[SOURce#:]FUNCtion:ARBitrary:FILTer", {"NORMal", "STEP", "OFF"},
+                 &ChannelSignal::arb_filter);
+  channel_choice("[SOURce#:]BURSt:GATE:POLarity", {"NORMal", "INVerted"},
+                 &ChannelSignal::burst_gate_polarity);
+  channel_choice("OUTPut#:POLarity", {"NORMal", "INVerted"}, &ChannelSignal::output_polarity);
+  channel_choice("TRIGger#:SLOPe", {"POSitive", "NEGative"}, &ChannelSignal::trigger_slope);
+  channel_number("TRIGger#:DELay", "S", 0.0, 1000.0, 0.0, &ChannelSignal::trigger_delay_s);
+
+  // Pulse: period (= 1 / frequency, for every function), width or duty cycle (HOLD says which
+  // a period change keeps), edge times; FitPulse keeps them realisable, with -221 when it has
+  // to adjust.
+  auto fit_pulse = [this](ChannelSignal& ch) {
+    if (FitPulse(ch)) PushError(-221, "Settings conflict;pulse width or edge time adjusted");
+  };
+  set("[SOURce#:]FUNCtion:PULSe:PERiod", [none, set_frequency](Context& c) {
+    ChannelSignal* ch = c.Channel();
+    if (!ch || !c.ParamCount(1, 1)) return none;
+    if (auto v = c.Number(0, "S", 1.0 / MaxFrequency(ch->function), 1e6, 1e-3)) {
+      set_frequency(*ch, 1.0 / *v);
+    }
+    return none;
+  });
+  get("[SOURce#:]FUNCtion:PULSe:PERiod", [](Context& c) -> R {
+    ChannelSignal* ch = c.Channel();
+    if (!ch) return std::nullopt;
+    return FormatReplyNumber(
+        c.QueryValue(1.0 / ch->frequency_hz, 1.0 / MaxFrequency(ch->function), 1e6, 1e-3));
+  });
+  set("[SOURce#:]FUNCtion:PULSe:WIDTh", [none, fit_pulse](Context& c) {
+    ChannelSignal* ch = c.Channel();
+    if (!ch || !c.ParamCount(1, 1)) return none;
+    if (auto v = c.Number(0, "S", kMinPulseWidth, 1e6, 100e-6)) {
+      ch->pulse_width_s = *v;
+      fit_pulse(*ch);
+    }
+    return none;
+  });
+  get("[SOURce#:]FUNCtion:PULSe:WIDTh", [](Context& c) -> R {
+    ChannelSignal* ch = c.Channel();
+    if (!ch) return std::nullopt;
+    const double wmax = std::max(kMinPulseWidth, 1.0 / ch->frequency_hz - kMinPulseWidth);
+    return FormatReplyNumber(c.QueryValue(ch->pulse_width_s, kMinPulseWidth, wmax, 100e-6));
+  });
+  set("[SOURce#:]FUNCtion:PULSe:DCYCle", [none, fit_pulse](Context& c) {
+    ChannelSignal* ch = c.Channel();
+    if (!ch || !c.ParamCount(1, 1)) return none;
+    if (auto v = c.Number(0, "PCT", 0.0, 100.0, 10.0)) {
+      ch->pulse_width_s = *v / 100.0 / ch->frequency_hz;
+      fit_pulse(*ch);
+    }
+    return none;
+  });
+  get("[SOURce#:]FUNCtion:PULSe:DCYCle", [](Context& c) -> R {
+    ChannelSignal* ch = c.Channel();
+    if (!ch) return std::nullopt;
+    return FormatReplyNumber(
+        c.QueryValue(100.0 * ch->pulse_width_s * ch->frequency_hz, 0.0, 100.0, 10.0));
+  });
+  channel_choice("[SOURce#:]FUNCtion:PULSe:HOLD", {"WIDTh", "DCYCle"}, &ChannelSignal::pulse_hold);
+  auto set_edges = [none, fit_pulse](Context& c, bool lead, bool trail) {
+    ChannelSignal* ch = c.Channel();
+    if (!ch || !c.ParamCount(1, 1)) return none;
+    if (auto v = c.Number(0, "S", kMinEdge, kMaxEdge, 10e-9)) {
+      if (lead) ch->pulse_lead_s = *v;
+      if (trail) ch->pulse_trail_s = *v;
+      fit_pulse(*ch);
+    }
+    return none;
+  };
+  auto get_edge = [](Context& c, bool lead) -> R {
+    ChannelSignal* ch = c.Channel();
+    if (!ch) return std::nullopt;
+    return FormatReplyNumber(
+        c.QueryValue(lead ? ch->pulse_lead_s : ch->pulse_trail_s, kMinEdge, kMaxEdge, 10e-9));
+  };
+  set("[SOURce#:]FUNCtion:PULSe:TRANsition[:BOTH]",
+      [set_edges](Context& c) { return set_edges(c, true, true); });
+  set("[SOURce#:]FUNCtion:PULSe:TRANsition:LEADing",
+      [set_edges](Context& c) { return set_edges(c, true, false); });
+  set("[SOURce#:]FUNCtion:PULSe:TRANsition:TRAiling",
+      [set_edges](Context& c) { return set_edges(c, false, true); });
+  // TRANsition? and TRANsition:BOTH? answer the leading edge.
+  get("[SOURce#:]FUNCtion:PULSe:TRANsition[:BOTH]",
+      [get_edge](Context& c) { return get_edge(c, true); });
+  get("[SOURce#:]FUNCtion:PULSe:TRANsition:LEADing",
+      [get_edge](Context& c) { return get_edge(c, true); });
+  get("[SOURce#:]FUNCtion:PULSe:TRANsition:TRAiling",
+      [get_edge](Context& c) { return get_edge(c, false); });
+
+  // Unit-wide settings and information.
+  set("UNIT:ANGLe", [this, none](Context& c) {
+    if (!c.ParamCount(1, 1)) return none;
+    if (MatchMnemonic("DEFault", c.cmd.params[0])) {
+      angle_unit_ = "DEG";
+    } else if (auto u = c.Choice({"DEGree", "RADian", "SECond"})) {
+      angle_unit_ = *u;
+    }
+    return none;
+  });
+  get("UNIT:ANGLe", [this](Context&) -> R { return angle_unit_; });
+  set("DISPlay:TEXT[:DATA]", [this, none](Context& c) {
+    if (!c.ParamCount(1, 1)) return none;
+    const std::string& p = c.cmd.params[0];
+    if (p.size() < 2 || (p.front() != '"' && p.front() != '\'') || p.back() != p.front()) {
+      PushError(-151, "Invalid string data");
+      return none;
+    }
+    display_text_ = Unquote(p);
+    return none;
+  });
+  get("DISPlay:TEXT[:DATA]", [this](Context&) -> R { return "\"" + display_text_ + "\""; });
+  set("DISPlay:TEXT:CLEar", [this, none](Context&) {
+    display_text_.clear();
+    return none;
+  });
+  set("SYSTem:BEEPer[:IMMediate]", [none](Context&) { return none; });
+  get("SYSTem:VERSion", [](Context&) -> R { return std::string("1999.0"); });
+  get("*TST", [](Context&) -> R { return std::string("+0"); });  // self-test passed
+  auto register_byte = [&](const char* name, int Mock33520B::*field) {
+    set(name, [this, none, field](Context& c) {
+      if (!c.ParamCount(1, 1)) return none;
+      if (auto v = c.Number(0, "", 0.0, 255.0, 0.0)) this->*field = static_cast<int>(*v);
+      return none;
+    });
+    get(name, [this, field](Context&) -> R { return "+" + std::to_string(this->*field); });
+  };
+  register_byte("*ESE", &Mock33520B::ese_);
+  register_byte("*SRE", &Mock33520B::sre_);
+
+  for (const Entry& e : table_)
+    max_header_nodes_ = std::max(max_header_nodes_, e.pattern.max_nodes());
 }
 
 }  // namespace msmcal::sim

@@ -5,7 +5,9 @@
 #include <utility>
 // clang-format on
 
+#include <algorithm>
 #include <boost/asio.hpp>
+#include <condition_variable>
 #include <deque>
 #include <list>
 #include <mutex>
@@ -19,16 +21,18 @@ namespace msmcal::sim {
 namespace asio = boost::asio;
 using asio::ip::tcp;
 
-namespace {
-constexpr size_t kMaxPendingBytes = 64u << 20;
-}
-
 struct MockGeneratorServer::Impl {
+  // One connection; every member is used on the io thread only.
   struct Session : std::enable_shared_from_this<Session> {
     Impl* server;
     tcp::socket socket;
-    std::string rx;
+    std::string rx;            // received bytes; rx[0, message_start) are consumed
+    size_t message_start = 0;  // start of the message being framed
+    MessageFramer framer;
+    bool discarding = false;                      // the current message overran the input buffer
     std::deque<std::pair<std::string, bool>> tx;  // bytes, close after
+    size_t pending = 0;                           // bytes in tx
+    bool reading = false;                         // an async_read_some is outstanding
     char buf[65536];
     bool closed = false;
 
@@ -42,44 +46,89 @@ struct MockGeneratorServer::Impl {
       socket.close(ignored);
     }
 
-    void Read() {
+    bool Blocked() const { return pending > server->limits.max_pending_reply_bytes; }
+
+    // Reads unless the unsent replies are over the cap (back-pressure: the client's sends
+    // block in TCP until it reads its replies).
+    void MaybeRead() {
+      if (closed || reading) return;
+      if (Blocked()) {
+        server->UpdateStats([](ServerStats& st) { ++st.read_pauses; });
+        return;
+      }
+      reading = true;
       auto self = shared_from_this();
       socket.async_read_some(asio::buffer(buf), [self](boost::system::error_code ec, size_t n) {
+        self->reading = false;
         if (ec) {
           self->Close();
           return;
         }
         self->rx.append(self->buf, n);
+        const size_t held = self->rx.size() - self->message_start;
+        self->server->UpdateStats(
+            [held](ServerStats& st) { st.input_high_water = std::max(st.input_high_water, held); });
         self->Drain();
-        if (self->rx.size() > kMaxPendingBytes) self->Close();
-        if (!self->closed) self->Read();
+        self->MaybeRead();
       });
     }
 
+    // Hands complete messages to the unit while the reply cap allows; each byte is framed once.
     void Drain() {
-      while (!closed) {
-        const auto end = FindMessageEnd(rx);
-        if (!end) return;
-        std::string message = rx.substr(0, *end);
-        rx.erase(0, *end + 1);
-        std::string reply = server->unit.Process(message);
-        if (reply.empty()) continue;
-        reply.push_back('\n');
-        std::optional<Fault> fault = server->TakeFault(message);
-        if (!fault) {
-          Send(std::move(reply), false);
-        } else if (fault->kind == FaultKind::kDelayReply) {
-          std::lock_guard lock(server->mu);
-          server->held.emplace_back(weak_from_this(), std::move(reply));
-        } else if (fault->kind == FaultKind::kDropMidReply) {
-          Send(reply.substr(0, reply.size() / 2), true);
-        } else {
-          Send(std::string("\x01\xfe\xff\x7fGARBAGE\x00\x1b[0m\n", 17), false);
+      while (!closed && !Blocked()) {
+        const auto end = framer.Next(rx);
+        const size_t length = (end ? *end : framer.scanned()) - message_start;
+        if (!discarding && length > server->limits.max_message_bytes) {
+          discarding = true;
+          server->unit.ReportInputOverrun();
+          server->UpdateStats([](ServerStats& st) { ++st.input_overruns; });
         }
+        if (!end) {
+          if (discarding) message_start = framer.scanned();  // drop what was framed
+          break;
+        }
+        const size_t start = message_start;
+        message_start = *end + 1;
+        framer.Reset(message_start);
+        if (discarding) {
+          discarding = false;
+          continue;
+        }
+        std::string message = rx.substr(start, *end - start);
+        server->UpdateStats([](ServerStats& st) { ++st.messages; });
+        Handle(message);
+      }
+      // Compact once per call, so consuming k messages of one read costs O(bytes), not O(k^2).
+      if (message_start > 0) {
+        rx.erase(0, message_start);
+        framer.Shift(message_start);
+        message_start = 0;
+      }
+    }
+
+    void Handle(const std::string& message) {
+      std::string reply = server->unit.Process(message);
+      if (reply.empty()) return;
+      reply.push_back('\n');
+      std::optional<Fault> fault = server->TakeFault(message);
+      if (!fault) {
+        Send(std::move(reply), false);
+      } else if (fault->kind == FaultKind::kDelayReply) {
+        std::lock_guard lock(server->mu);
+        server->held.emplace_back(weak_from_this(), std::move(reply));
+      } else if (fault->kind == FaultKind::kDropMidReply) {
+        Send(reply.substr(0, reply.size() / 2), true);
+      } else {
+        Send(std::string("\x01\xfe\xff\x7fGARBAGE\x00\x1b[0m\n", 17), false);
       }
     }
 
     void Send(std::string bytes, bool close_after) {
+      pending += bytes.size();
+      const size_t p = pending;
+      server->UpdateStats([p](ServerStats& st) {
+        st.pending_reply_high_water = std::max(st.pending_reply_high_water, p);
+      });
       tx.emplace_back(std::move(bytes), close_after);
       if (tx.size() == 1) WriteNext();
     }
@@ -90,10 +139,16 @@ struct MockGeneratorServer::Impl {
       asio::async_write(socket, asio::buffer(tx.front().first),
                         [self](boost::system::error_code ec, size_t) {
                           const bool close_after = self->tx.front().second;
+                          self->pending -= self->tx.front().first.size();
                           self->tx.pop_front();
                           if (ec || close_after) {
                             self->Close();
                             return;
+                          }
+                          // Replies drained below the cap: serve what is buffered, read on.
+                          if (!self->reading && !self->Blocked()) {
+                            self->Drain();
+                            self->MaybeRead();
                           }
                           self->WriteNext();
                         });
@@ -102,6 +157,10 @@ struct MockGeneratorServer::Impl {
 
   Mock33520B& unit;
   int requested_port;
+  ServerLimits limits;
+  mutable std::mutex stats_mu;
+  mutable std::condition_variable stats_cv;
+  ServerStats stats;
   int bound_port = 0;
   asio::io_context io;
   tcp::acceptor acceptor{io};
@@ -113,7 +172,16 @@ struct MockGeneratorServer::Impl {
   std::atomic<uint64_t> accepted{0};
   bool running = false;
 
-  Impl(Mock33520B& u, int port) : unit(u), requested_port(port) {}
+  Impl(Mock33520B& u, int port, ServerLimits l) : unit(u), requested_port(port), limits(l) {}
+
+  template <typename F>
+  void UpdateStats(F f) {
+    {
+      std::lock_guard lock(stats_mu);
+      f(stats);
+    }
+    stats_cv.notify_all();
+  }
 
   std::optional<Fault> TakeFault(const std::string& message) {
     std::lock_guard lock(mu);
@@ -141,14 +209,15 @@ struct MockGeneratorServer::Impl {
       sessions.remove_if([](const std::weak_ptr<Session>& w) { return w.expired(); });
       sessions.push_back(session);
       ++accepted;
-      session->Read();
+      UpdateStats([](ServerStats& st) { ++st.connections; });
+      session->MaybeRead();
       Accept();
     });
   }
 };
 
-MockGeneratorServer::MockGeneratorServer(Mock33520B& unit, int port)
-    : impl_(std::make_unique<Impl>(unit, port)) {}
+MockGeneratorServer::MockGeneratorServer(Mock33520B& unit, int port, ServerLimits limits)
+    : impl_(std::make_unique<Impl>(unit, port, limits)) {}
 
 MockGeneratorServer::~MockGeneratorServer() { Stop(); }
 
@@ -212,6 +281,18 @@ void MockGeneratorServer::ReleaseDelayedReplies() {
 }
 
 uint64_t MockGeneratorServer::ConnectionsAccepted() const { return impl_->accepted; }
+
+ServerStats MockGeneratorServer::Stats() const {
+  std::lock_guard lock(impl_->stats_mu);
+  return impl_->stats;
+}
+
+bool MockGeneratorServer::WaitForStats(const std::function<bool(const ServerStats&)>& pred,
+                                       int64_t timeout_ms) const {
+  std::unique_lock lock(impl_->stats_mu);
+  return impl_->stats_cv.wait_for(lock, std::chrono::milliseconds(timeout_ms),
+                                  [&] { return pred(impl_->stats); });
+}
 
 MockGeneratorPair::MockGeneratorPair(GeneratorPairOptions options, ClockNs clock_ns)
     : reference_wired_(options.reference_wired) {

@@ -4,10 +4,17 @@
 //
 // Framing: a program message ends with '\n' outside quoted strings and definite-length blocks
 // (a trailing '\r', as pyvisa sends, is ignored); each response message is written in one send.
+// Memory per connection is bounded (ServerLimits): a client that sends queries without reading
+// the replies is flow-controlled (the server stops reading its socket while its unsent replies
+// exceed the cap, and resumes as they drain; nothing is dropped), and a program message longer
+// than the input buffer is discarded up to its terminator with -363 "Input buffer overrun"
+// (the connection stays usable). One slow or hostile client never blocks the others.
 // Threads: one I/O thread per server; Start()/Stop()/InjectFault()/ReleaseDelayedReplies() may be
 // called from any thread.
 
 #include <atomic>
+#include <cstdint>
+#include <functional>
 #include <memory>
 #include <string>
 
@@ -29,10 +36,28 @@ struct Fault {
   int skip = 0;
 };
 
+struct ServerLimits {
+  // Unsent reply bytes of one connection above which its socket is not read.
+  size_t max_pending_reply_bytes = 1u << 20;
+  // The input buffer: the longest program message accepted. 36 MiB holds the largest legal
+  // one, a 16 M-point binary arb upload (32 MB of block data) with its header.
+  size_t max_message_bytes = 36u << 20;
+};
+
+// Counters for tests (all connections since Start()).
+struct ServerStats {
+  uint64_t connections = 0;
+  uint64_t messages = 0;                // program messages handed to the unit
+  uint64_t read_pauses = 0;             // times a connection was flow-controlled
+  uint64_t input_overruns = 0;          // messages discarded for length
+  size_t pending_reply_high_water = 0;  // most unsent reply bytes one connection held
+  size_t input_high_water = 0;          // most received, unprocessed bytes one connection held
+};
+
 class MockGeneratorServer {
  public:
   // port 0 picks a free port (see port() after Start()).
-  MockGeneratorServer(Mock33520B& unit, int port);
+  MockGeneratorServer(Mock33520B& unit, int port, ServerLimits limits = {});
   ~MockGeneratorServer();
   MockGeneratorServer(const MockGeneratorServer&) = delete;
   MockGeneratorServer& operator=(const MockGeneratorServer&) = delete;
@@ -47,6 +72,9 @@ class MockGeneratorServer {
   void ReleaseDelayedReplies();
   // Connections accepted so far (for tests that check reconnects).
   uint64_t ConnectionsAccepted() const;
+  ServerStats Stats() const;
+  // Blocks until pred(Stats()) holds or timeout_ms passes; returns pred's last value.
+  bool WaitForStats(const std::function<bool(const ServerStats&)>& pred, int64_t timeout_ms) const;
 
  private:
   struct Impl;

@@ -1,10 +1,10 @@
 #include "mocks/generator/scpi_parser.h"
 
+#include <algorithm>
 #include <cctype>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
-#include <functional>
 
 namespace msmcal::sim {
 namespace {
@@ -37,61 +37,6 @@ long BlockSize(std::string_view text, size_t i) {
 bool IsBlockStart(std::string_view text, size_t i) {
   return text[i] == '#' && i + 1 < text.size() &&
          std::isdigit(static_cast<unsigned char>(text[i + 1]));
-}
-
-struct PatternNode {
-  std::string long_form;  // upper case
-  std::string short_form;
-  bool optional = false;
-  bool suffix = false;
-};
-
-std::vector<PatternNode> ParsePattern(std::string_view pattern) {
-  std::vector<PatternNode> nodes;
-  int depth = 0;
-  PatternNode cur;
-  bool started = false;
-  auto flush = [&] {
-    if (started) nodes.push_back(cur);
-    cur = PatternNode{};
-    started = false;
-  };
-  for (char c : pattern) {
-    if (c == '[') {
-      flush();
-      ++depth;
-    } else if (c == ']') {
-      flush();
-      --depth;
-    } else if (c == ':') {
-      flush();
-    } else if (c == '#') {
-      cur.suffix = true;
-    } else {
-      if (!started) cur.optional = depth > 0;
-      started = true;
-      cur.long_form.push_back(static_cast<char>(std::toupper(static_cast<unsigned char>(c))));
-      if (std::isupper(static_cast<unsigned char>(c)) || c == '*' || c == '?') {
-        cur.short_form.push_back(c);
-      }
-    }
-  }
-  flush();
-  return nodes;
-}
-
-// Splits "SOUR12" into ("SOUR", 12); suffix -1 when absent.
-bool SplitNode(std::string_view node, std::string& alpha, int& suffix) {
-  size_t k = node.size();
-  while (k > 0 && std::isdigit(static_cast<unsigned char>(node[k - 1]))) --k;
-  alpha = Upper(node.substr(0, k));
-  if (k == node.size()) {
-    suffix = -1;
-  } else {
-    if (node.size() - k > 3) return false;
-    suffix = std::atoi(std::string(node.substr(k)).c_str());
-  }
-  return !alpha.empty();
 }
 
 }  // namespace
@@ -232,32 +177,85 @@ std::vector<std::string> ResolvePath(const CommandUnit& unit, std::vector<std::s
   return full;
 }
 
-std::optional<std::vector<int>> MatchHeader(std::string_view pattern,
-                                            const std::vector<std::string>& nodes) {
-  const std::vector<PatternNode> pat = ParsePattern(pattern);
-  std::vector<int> suffixes;
-  std::function<bool(size_t, size_t)> match = [&](size_t pi, size_t ni) -> bool {
-    if (pi == pat.size()) return ni == nodes.size();
-    const PatternNode& p = pat[pi];
-    if (ni < nodes.size()) {
-      std::string alpha;
-      int suffix = -1;
-      if (SplitNode(nodes[ni], alpha, suffix) && (alpha == p.short_form || alpha == p.long_form) &&
-          (suffix < 0 || p.suffix)) {
-        if (p.suffix) suffixes.push_back(suffix < 0 ? 1 : suffix);
-        if (match(pi + 1, ni + 1)) return true;
-        if (p.suffix) suffixes.pop_back();
+std::vector<HeaderNode> SplitHeaderNodes(const std::vector<std::string>& nodes) {
+  std::vector<HeaderNode> out(nodes.size());
+  for (size_t i = 0; i < nodes.size(); ++i) {
+    std::string_view node = nodes[i];
+    size_t k = node.size();
+    while (k > 0 && std::isdigit(static_cast<unsigned char>(node[k - 1]))) --k;
+    HeaderNode& h = out[i];
+    h.alpha = Upper(node.substr(0, k));
+    h.valid = !h.alpha.empty() && node.size() - k <= 3;
+    if (k < node.size() && h.valid) h.suffix = std::atoi(std::string(node.substr(k)).c_str());
+  }
+  return out;
+}
+
+HeaderPattern::HeaderPattern(std::string_view pattern) {
+  int depth = 0;
+  Node cur;
+  bool started = false;
+  auto flush = [&] {
+    if (started) nodes_.push_back(cur);
+    cur = Node{};
+    started = false;
+  };
+  for (char c : pattern) {
+    if (c == '[') {
+      flush();
+      ++depth;
+    } else if (c == ']') {
+      flush();
+      --depth;
+    } else if (c == ':') {
+      flush();
+    } else if (c == '#') {
+      cur.suffix = true;
+    } else {
+      if (!started) cur.optional = depth > 0;
+      started = true;
+      cur.long_form.push_back(static_cast<char>(std::toupper(static_cast<unsigned char>(c))));
+      if (std::isupper(static_cast<unsigned char>(c)) || c == '*' || c == '?') {
+        cur.short_form.push_back(c);
       }
     }
-    if (p.optional) {
-      if (p.suffix) suffixes.push_back(1);
-      if (match(pi + 1, ni)) return true;
+  }
+  flush();
+}
+
+bool HeaderPattern::MatchFrom(size_t pi, size_t ni, const std::vector<HeaderNode>& nodes,
+                              std::vector<int>& suffixes, uint64_t* work) const {
+  if (pi == nodes_.size()) return ni == nodes.size();
+  if (work) ++*work;
+  const Node& p = nodes_[pi];
+  if (ni < nodes.size()) {
+    const HeaderNode& h = nodes[ni];
+    if (h.valid && (h.alpha == p.short_form || h.alpha == p.long_form) &&
+        (h.suffix < 0 || p.suffix)) {
+      if (p.suffix) suffixes.push_back(h.suffix < 0 ? 1 : h.suffix);
+      if (MatchFrom(pi + 1, ni + 1, nodes, suffixes, work)) return true;
       if (p.suffix) suffixes.pop_back();
     }
-    return false;
-  };
-  if (match(0, 0)) return suffixes;
+  }
+  if (p.optional) {
+    if (p.suffix) suffixes.push_back(1);
+    if (MatchFrom(pi + 1, ni, nodes, suffixes, work)) return true;
+    if (p.suffix) suffixes.pop_back();
+  }
+  return false;
+}
+
+std::optional<std::vector<int>> HeaderPattern::Match(const std::vector<HeaderNode>& nodes,
+                                                     uint64_t* work) const {
+  if (nodes.size() > nodes_.size()) return std::nullopt;
+  std::vector<int> suffixes;
+  if (MatchFrom(0, 0, nodes, suffixes, work)) return suffixes;
   return std::nullopt;
+}
+
+std::optional<std::vector<int>> MatchHeader(std::string_view pattern,
+                                            const std::vector<std::string>& nodes) {
+  return HeaderPattern(pattern).Match(SplitHeaderNodes(nodes));
 }
 
 std::optional<size_t> FindMessageEnd(std::string_view buffer) {
@@ -283,6 +281,62 @@ std::optional<size_t> FindMessageEnd(std::string_view buffer) {
   }
   return std::nullopt;
 }
+
+std::optional<size_t> MessageFramer::Next(std::string_view buffer) {
+  while (pos_ < buffer.size()) {
+    if (block_left_ > 0) {
+      const uint64_t take = std::min<uint64_t>(block_left_, buffer.size() - pos_);
+      pos_ += static_cast<size_t>(take);
+      block_left_ -= take;
+      continue;
+    }
+    const char c = buffer[pos_];
+    if (quoted_) {
+      if (c == quote_) quoted_ = false;
+      if (c == '\n') {  // an unterminated string ends at the line end
+        quoted_ = false;
+        return pos_++;
+      }
+      ++pos_;
+      continue;
+    }
+    if (c == '#' && pos_ + 1 == buffer.size()) return std::nullopt;  // a block may follow
+    if (c == '"' || c == '\'') {
+      quoted_ = true;
+      quote_ = c;
+    } else if (IsBlockStart(buffer, pos_)) {
+      // "#<n><n digits>": wait until the header is complete, then skip the payload as it comes.
+      const size_t n = static_cast<size_t>(buffer[pos_ + 1] - '0');
+      if (n >= 1) {
+        if (pos_ + 2 + n > buffer.size()) return std::nullopt;
+        uint64_t len = 0;
+        bool digits = true;
+        for (size_t k = 0; k < n && digits; ++k) {
+          const char d = buffer[pos_ + 2 + k];
+          digits = d >= '0' && d <= '9';
+          len = len * 10 + static_cast<uint64_t>(d - '0');
+        }
+        if (digits) {
+          pos_ += 2 + n;
+          block_left_ = len;
+          continue;
+        }
+      }
+    } else if (c == '\n') {
+      return pos_++;
+    }
+    ++pos_;
+  }
+  return std::nullopt;
+}
+
+void MessageFramer::Reset(size_t start) {
+  pos_ = start;
+  quoted_ = false;
+  block_left_ = 0;
+}
+
+void MessageFramer::Shift(size_t n) { pos_ -= std::min(n, pos_); }
 
 std::optional<double> ParseNumericWithUnit(std::string_view text, std::string_view unit) {
   const std::string s(TrimWs(text));
