@@ -212,7 +212,7 @@ struct Mock33520B::Context {
 
   // Character data among `choices` (long forms like "WIDTh"); returns the short form, or
   // pushes -224 and returns nullopt.
-  std::optional<std::string> Choice(std::initializer_list<const char*> choices) {
+  std::optional<std::string> Choice(const std::vector<const char*>& choices) {
     for (const char* c : choices) {
       if (MatchMnemonic(c, cmd.params[0])) {
         std::string short_form;
@@ -226,7 +226,8 @@ struct Mock33520B::Context {
     return std::nullopt;
   }
 
-  // An angle (PHASe, BURSt:PHASe) in the UNIT:ANGLe unit, or with a DEG/RAD suffix, as degrees
+  // An angle (PHASe, BURSt:PHASe) in the UNIT:ANGLe unit, or with a DEG/RAD suffix (S in SEC
+  // mode), as degrees
   // clipped to +-360 degrees (+-2 pi rad, +-1 period in SEC) with -222.
   std::optional<double> AngleDeg(const ChannelSignal& ch) {
     const std::string t = Upper(cmd.params[0]);
@@ -242,6 +243,8 @@ struct Mock33520B::Context {
       deg = *d;
     } else if (auto r = ParseNumericWithUnit(t, "RAD")) {
       deg = *r * 180.0 / kPi;
+    } else if (auto sec = ParseNumericWithUnit(t, "S"); sec && unit.angle_unit_ == "SEC") {
+      deg = *sec * ch.frequency_hz * 360.0;
     } else {
       BadNumber(t);
       return std::nullopt;
@@ -1102,7 +1105,7 @@ void Mock33520B::BuildTable() {
   });
 
   // A character-data setting of a channel: the reply is the short form of the choice.
-  auto channel_choice = [&](const char* pattern, std::initializer_list<const char*> choices,
+  auto channel_choice = [&](const char* pattern, std::vector<const char*> choices,
                             std::string ChannelSignal::*field) {
     set(pattern, [none, choices, field](Context& c) {
       ChannelSignal* ch = c.Channel();

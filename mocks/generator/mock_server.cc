@@ -13,6 +13,7 @@
 #include <mutex>
 #include <stdexcept>
 #include <thread>
+#include <vector>
 
 #include "mocks/generator/scpi_parser.h"
 
@@ -33,6 +34,7 @@ struct MockGeneratorServer::Impl {
     std::deque<std::pair<std::string, bool>> tx;  // bytes, close after
     size_t pending = 0;                           // bytes in tx
     bool reading = false;                         // an async_read_some is outstanding
+    bool writing = false;                         // an async_write is outstanding
     char buf[65536];
     bool closed = false;
 
@@ -130,23 +132,34 @@ struct MockGeneratorServer::Impl {
         st.pending_reply_high_water = std::max(st.pending_reply_high_water, p);
       });
       tx.emplace_back(std::move(bytes), close_after);
-      if (tx.size() == 1) WriteNext();
+      WriteNext();
     }
 
+    // Writes every queued reply (up to one that closes the connection) in one gather write.
     void WriteNext() {
-      if (tx.empty() || closed) return;
+      if (tx.empty() || closed || writing) return;
+      std::vector<asio::const_buffer> bufs;
+      size_t count = 0;
+      bool close_after = false;
+      for (const auto& [bytes, close] : tx) {
+        bufs.push_back(asio::buffer(bytes));
+        ++count;
+        if ((close_after = close)) break;
+      }
+      writing = true;
       auto self = shared_from_this();
-      asio::async_write(socket, asio::buffer(tx.front().first),
-                        [self](boost::system::error_code ec, size_t) {
-                          const bool close_after = self->tx.front().second;
-                          self->pending -= self->tx.front().first.size();
-                          self->tx.pop_front();
+      asio::async_write(socket, bufs,
+                        [self, count, close_after](boost::system::error_code ec, size_t n) {
+                          self->writing = false;
+                          self->pending -= n;
+                          for (size_t i = 0; i < count; ++i) self->tx.pop_front();
                           if (ec || close_after) {
                             self->Close();
                             return;
                           }
-                          // Replies drained below the cap: serve what is buffered, read on.
-                          if (!self->reading && !self->Blocked()) {
+                          // Replies drained to half the cap: serve what is buffered, read on.
+                          if (!self->reading &&
+                              self->pending <= self->server->limits.max_pending_reply_bytes / 2) {
                             self->Drain();
                             self->MaybeRead();
                           }

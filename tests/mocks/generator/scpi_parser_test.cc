@@ -65,5 +65,46 @@ TEST(ScpiParserTest, SyntaxErrors) {
   EXPECT_EQ(SplitProgramMessage("DATA:ARB:DAC a,#0abc").failure->code, -161);
 }
 
+// The incremental framer ends messages where FindMessageEnd does, however the bytes arrive.
+TEST(ScpiParserTest, FramerAgreesWithFindMessageEndForEveryChunking) {
+  const std::string stream = std::string("*IDN?\n") + "DISP:TEXT 'a\n" +  // unterminated string
+                             "DATA:ARB:DAC X,#210ab\ncd\"ef\n;\n" +       // block with '\n' inside
+                             "FREQ 1#0\n" + "A \"q\n\" B\n" + "DATA #3004a\nb\n\n";
+  std::vector<size_t> want;
+  for (size_t start = 0;;) {
+    const auto end = FindMessageEnd(std::string_view(stream).substr(start));
+    if (!end) break;
+    want.push_back(start + *end);
+    start += *end + 1;
+  }
+  ASSERT_EQ(want.size(), 7u);
+  for (size_t chunk : {1u, 2u, 3u, 5u, 7u, 64u}) {
+    std::string buffer;
+    MessageFramer framer;
+    std::vector<size_t> got;
+    for (size_t i = 0; i < stream.size(); i += chunk) {
+      buffer += stream.substr(i, chunk);
+      while (auto end = framer.Next(buffer)) {
+        got.push_back(*end);
+        framer.Reset(*end + 1);
+      }
+    }
+    EXPECT_EQ(got, want) << "chunk " << chunk;
+  }
+}
+
+TEST(ScpiParserTest, FramerShiftKeepsItsPlace) {
+  MessageFramer framer;
+  std::string buffer = "*IDN?\nFREQ #14ab";
+  auto end = framer.Next(buffer);
+  ASSERT_EQ(end, 5u);
+  framer.Reset(6);
+  EXPECT_FALSE(framer.Next(buffer));
+  buffer.erase(0, 6);
+  framer.Shift(6);
+  buffer += "\nc\n";  // the block's payload "ab\nc" ends before the terminator
+  EXPECT_EQ(framer.Next(buffer), buffer.size() - 1);
+}
+
 }  // namespace
 }  // namespace msmcal::sim
