@@ -1,6 +1,7 @@
 // Function generator commands:
 //   msmcal gen identify --rig CONFIG
 //   msmcal gen apply --rig CONFIG [--detach] [--triggers-out FILE] [--transcript FILE]
+//                    [--watchdog-log FILE]
 //   msmcal gen off --rig CONFIG
 //   msmcal mock generators --rig CONFIG [--unlocked] [--no-trigger-cable]
 //   msmcal mock generator --port P [--idn TEXT]
@@ -17,6 +18,7 @@
 #include "app/command_registry.h"
 #include "drivers/generator/rig_generators.h"
 #include "drivers/generator/safe_state.h"
+#include "drivers/generator/watchdog.h"
 #include "mocks/generator/mock_server.h"
 
 namespace {
@@ -37,6 +39,7 @@ struct GenArgs {
   bool detach = false;
   std::string triggers_out;
   std::string transcript;
+  std::string watchdog_log;
 };
 
 // Blocks SIGINT/SIGTERM in this thread (and the threads it starts), then waits for one.
@@ -89,8 +92,20 @@ void Apply(const GenArgs& args) {
   auto master = msmcal::gen::OpenKeysight33500(config.unit1, sink1);
   auto slave = msmcal::gen::OpenKeysight33500(config.unit2, sink2);
   msmcal::gen::RigGenerators rig(*master, *slave);
-  msmcal::gen::SafeStateGuard guard([&rig] {
-    if (!rig.SafeState()) msmcal::gen::SafeStateGuard::ReportUnconfirmed();
+  // The watchdog (docs/watchdog.md) covers what the guard cannot: SIGKILL, an OOM kill, a crash.
+  // Not with --detach: the outputs are meant to stay on after this process.
+  std::unique_ptr<msmcal::gen::Watchdog> watchdog;
+  if (!args.detach) {
+    watchdog =
+        msmcal::gen::Watchdog::Start(msmcal::gen::SelfWatchdogLaunch("msmcal", "watchdog"),
+                                     msmcal::gen::WatchdogConfigFor(config, args.watchdog_log));
+  }
+  msmcal::gen::SafeStateGuard guard([&rig, &watchdog] {
+    if (!rig.SafeState()) {
+      msmcal::gen::SafeStateGuard::ReportUnconfirmed();  // the watchdog tries again at exit
+    } else if (watchdog) {
+      watchdog->StandDown();
+    }
   });
   rig.Apply(plan);
   const auto& t = plan.trigger;
@@ -152,6 +167,9 @@ void AddGenCommands(CLI::App& app) {
   apply->add_flag("--detach", args->detach, "Exit leaving the outputs on");
   apply->add_option("--triggers-out", args->triggers_out, "Write the trigger table (CSV j,t_s)");
   apply->add_option("--transcript", args->transcript, "Write the SCPI transcript");
+  apply->add_option("--watchdog-log", args->watchdog_log,
+                    "File the watchdog appends its report to if this process is killed "
+                    "(default: stderr only)");
   apply->callback([args] { Apply(*args); });
 
   auto* off = gen->add_subcommand("off", "Turn every generator output off");

@@ -147,6 +147,7 @@ orchestrator::SessionResult RunDemoAcquisition(const fs::path& out,
   oo.mirror_id = "simulated MSM, seed " + std::to_string(options.sim.seed);
   oo.note = options.note;
   oo.resume = options.resume;
+  oo.watchdog = gen::SelfWatchdogLaunch("msmcal", "watchdog");
   if (options.adjust_options) options.adjust_options(oo);
   const dataset::Recording plan = rig.Plan();
   std::unique_ptr<orchestrator::RigOperator> op;
@@ -214,6 +215,7 @@ orchestrator::SessionResult RunLabAcquisition(const fs::path& out,
   oo.mirror_id = options.mirror_id;
   oo.note = options.note;
   oo.resume = options.resume;
+  oo.watchdog = gen::SelfWatchdogLaunch("msmcal", "watchdog");
   if (std::string e = oo.Validate(); !e.empty()) throw std::invalid_argument(e);
 
   orchestrator::ConsoleOperatorOptions co;

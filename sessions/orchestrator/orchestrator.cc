@@ -574,10 +574,19 @@ SessionResult RunSession(const OrchestratorOptions& options, const dataset::Reco
   journal->SetStep(kStepRigCheck, store::StepState::kDone);
   log.Line("rig check passed");
 
-  // From here on outputs may be on: safe state on signal, exception and exit.
+  // From here on outputs may be on: safe state on signal, exception and exit; the watchdog for
+  // SIGKILL and crashes, stood down once the outputs are confirmed off.
   gen::RigGenerators rig(*inst.master, *inst.slave);
+  std::unique_ptr<gen::Watchdog> watchdog;
+  if (options.watchdog.enabled()) {
+    watchdog = gen::Watchdog::Start(
+        options.watchdog,
+        gen::WatchdogConfigFor(options.generators, (out / "session_log.txt").string()));
+    log.Line("watchdog armed (pid " + std::to_string(watchdog->pid()) + ")");
+  }
   auto safe_state = [&] {
     const bool ok = rig.SafeState();
+    if (ok && watchdog) watchdog->StandDown();
     log.SetGeneratorEpoch(std::nullopt);
     log.Line(ok ? "safe state: generator outputs off (confirmed)"
                 : "safe state: outputs off NOT confirmed by both generators",

@@ -28,6 +28,7 @@
 
 #include "drivers/generator/rig_config.h"
 #include "drivers/generator/rig_generators.h"
+#include "drivers/generator/watchdog.h"
 #include "drivers/hall_mcu/hall_sensor.h"
 #include "processing/dataset/recording.h"
 #include "sessions/orchestrator/quality_gate.h"
@@ -91,6 +92,10 @@ struct OrchestratorOptions {
   // Continue the session in out_dir (which must hold a session.db written by RunSession) instead
   // of starting one; `plan` must be the plan stored there (see LoadSessionPlan).
   bool resume = false;
+  // The generator watchdog process (docs/watchdog.md), started before the first output goes on
+  // and stood down once the outputs are confirmed off; it reports into session_log.txt if this
+  // process dies first. Empty executable: none (in-process tests); msmcal arms itself.
+  gen::WatchdogLaunch watchdog;
   const store::Clock* clock = nullptr;  // journal wall clock; null: the system clock
   std::string Validate() const;         // empty when valid; names field, value, constraint
 };
