@@ -87,6 +87,27 @@ void WriteAll(int fd, const std::string& s) {
   }
 }
 
+// write() of one byte that reports a closed read end as false instead of raising SIGPIPE (a
+// watchdog that already exited must not kill its parent): SIGPIPE is blocked in this thread for
+// the call and a pending one is consumed.
+bool WriteByteNoSigpipe(int fd, char b) {
+  sigset_t pipe_set, old;
+  sigemptyset(&pipe_set);
+  sigaddset(&pipe_set, SIGPIPE);
+  pthread_sigmask(SIG_BLOCK, &pipe_set, &old);
+  ssize_t n;
+  do {
+    n = write(fd, &b, 1);
+  } while (n < 0 && errno == EINTR);
+  if (n < 0 && errno == EPIPE) {
+    const timespec zero{0, 0};
+    while (sigtimedwait(&pipe_set, nullptr, &zero) < 0 && errno == EINTR) {
+    }
+  }
+  pthread_sigmask(SIG_SETMASK, &old, nullptr);
+  return n == 1;
+}
+
 }  // namespace
 
 std::string WatchdogConfig::Validate() const {
@@ -421,8 +442,7 @@ Watchdog::~Watchdog() {
 int Watchdog::StandDown() {
   std::lock_guard lock(mu_);
   if (life_fd_ >= 0) {
-    const char b = kStandDownByte;
-    [[maybe_unused]] const ssize_t n = write(life_fd_, &b, 1);
+    WriteByteNoSigpipe(life_fd_, kStandDownByte);
     close(life_fd_);
     life_fd_ = -1;
   }
