@@ -87,9 +87,15 @@ nlohmann::json SummaryJson(const solver::SolveOutput& out, double solve_time_s) 
   return j;
 }
 
-solver::ImageLoader FolderLoader(const fs::path& dir) {
-  return [dir](const std::string& file) {
-    return cv::imread((dir / file).string(), cv::IMREAD_UNCHANGED);
+// Reads the folder's images; each one must be what `msmcal interchange check` accepts (8/16-bit
+// mono or BGR of camera.yaml's image_size), else the solve stops naming the file.
+solver::ImageLoader FolderLoader(const fs::path& dir, const geometry::CameraModel& camera) {
+  return [dir, camera](const std::string& file) {
+    cv::Mat image = cv::imread((dir / file).string(), cv::IMREAD_UNCHANGED);
+    if (image.empty()) return image;  // the solver reports an unreadable image itself
+    if (std::string problem = interchange::ImageProblem(image, camera); !problem.empty())
+      throw solver::SolveError(file + ": " + problem);
+    return image;
   };
 }
 
@@ -265,7 +271,7 @@ void RunSolve(const SolveArgs& args) {
   const auto t0 = std::chrono::steady_clock::now();
   solver::SolveOutput out;
   try {
-    out = solver::SolveRecording(rec, FolderLoader(dir), options);
+    out = solver::SolveRecording(rec, FolderLoader(dir, rec.camera), options);
   } catch (const solver::SolveError& e) {
     if (e.partial) {
       for (const auto& d : e.partial->dropped)

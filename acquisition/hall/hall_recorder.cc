@@ -22,6 +22,10 @@ const char* ToString(RecorderEnd end) {
       return "closed";
     case RecorderEnd::kCommandFailed:
       return "command_failed";
+    case RecorderEnd::kSinkFailed:
+      return "sink_failed";
+    case RecorderEnd::kSinkHung:
+      return "sink_hung";
   }
   return "unknown";
 }
@@ -34,6 +38,10 @@ std::string HallRecorderOptions::Validate() const {
   if (queue_capacity == 0) {
     return "HallRecorderOptions.queue_capacity = 0: violated constraint queue_capacity > 0";
   }
+  if (sink_timeout_ms <= 0) {
+    return "HallRecorderOptions.sink_timeout_ms = " + std::to_string(sink_timeout_ms) +
+           ": violated constraint sink_timeout_ms > 0";
+  }
   if (rate_hz && *rate_hz == 0) return "HallRecorderOptions.rate_hz = 0: violated constraint > 0";
   if (settings) {
     if (std::string msg = settings->Validate(); !msg.empty()) return "HallRecorderOptions." + msg;
@@ -41,11 +49,26 @@ std::string HallRecorderOptions::Validate() const {
   return {};
 }
 
+struct HallRecorder::Shared {
+  HallBatchSink sink;
+  std::mutex mu;
+  std::condition_variable cv;
+  std::deque<hall_mcu::HallBatch> queue;
+  bool stop_requested = false;
+  bool reader_done = false;
+  bool sink_done = false;
+  // When the sink call in progress started (none: the sink thread is between calls).
+  std::optional<std::chrono::steady_clock::time_point> sink_call_started;
+  std::string sink_error;
+  HallRecorderResult result;
+};
+
 HallRecorder::HallRecorder(hall_mcu::HallSensor& sensor, HallBatchSink sink,
                            HallRecorderOptions options)
-    : sensor_(sensor), sink_(std::move(sink)), options_(std::move(options)) {
+    : sensor_(sensor), options_(std::move(options)), shared_(std::make_shared<Shared>()) {
   if (std::string msg = options_.Validate(); !msg.empty()) throw std::invalid_argument(msg);
-  if (!sink_) throw std::invalid_argument("HallRecorder: sink is empty");
+  if (!sink) throw std::invalid_argument("HallRecorder: sink is empty");
+  shared_->sink = std::move(sink);
 }
 
 HallRecorder::~HallRecorder() {
@@ -54,33 +77,67 @@ HallRecorder::~HallRecorder() {
 }
 
 void HallRecorder::Start() {
-  if (reader_.joinable()) return;
-  result_.counts.driver = sensor_.counters();
-  sink_thread_ = std::thread([this] { SinkLoop(); });
+  if (reader_.joinable() || finished_) return;
+  shared_->result.counts.driver = sensor_.counters();
+  sink_thread_ = std::thread([shared = shared_] { SinkLoop(shared); });
   reader_ = std::thread([this] { ReaderLoop(); });
 }
 
 void HallRecorder::Stop() {
-  std::lock_guard lock(mu_);
-  stop_requested_ = true;
-  cv_.notify_all();
+  std::lock_guard lock(shared_->mu);
+  shared_->stop_requested = true;
+  shared_->cv.notify_all();
 }
 
 HallRecorderResult HallRecorder::Wait() {
+  // The reader ends within the driver's stall deadline once asked to (or by itself).
   if (reader_.joinable()) reader_.join();
-  if (sink_thread_.joinable()) sink_thread_.join();
-  std::lock_guard lock(mu_);
-  return result_;
+  Shared& s = *shared_;
+  std::unique_lock lock(s.mu);
+  if (finished_ || !sink_thread_.joinable()) return s.result;
+  const auto bound = std::chrono::milliseconds(options_.sink_timeout_ms);
+  bool hung = false;
+  while (!s.sink_done) {
+    const auto now = std::chrono::steady_clock::now();
+    if (s.sink_call_started && now - *s.sink_call_started >= bound) {
+      hung = true;
+      break;
+    }
+    s.cv.wait_until(lock, (s.sink_call_started ? *s.sink_call_started : now) + bound);
+  }
+  finished_ = true;
+  if (hung) {
+    s.result.end = RecorderEnd::kSinkHung;
+    s.result.message = "the sink did not return within sink_timeout_ms = " +
+                       std::to_string(options_.sink_timeout_ms) + " ms; its thread is abandoned";
+    lock.unlock();
+    sink_thread_.detach();  // it holds only `shared_` (see the header)
+    lock.lock();
+    return s.result;
+  }
+  if (!s.sink_error.empty()) {
+    s.result.end = RecorderEnd::kSinkFailed;
+    s.result.message = "the sink failed: " + s.sink_error;
+  }
+  lock.unlock();
+  sink_thread_.join();
+  lock.lock();
+  return s.result;
 }
 
 bool HallRecorder::WaitForReader(std::chrono::milliseconds timeout) {
-  std::unique_lock lock(mu_);
-  return cv_.wait_for(lock, timeout, [&] { return reader_done_; });
+  std::unique_lock lock(shared_->mu);
+  return shared_->cv.wait_for(lock, timeout, [&] { return shared_->reader_done; });
 }
 
 HallRecorderCounts HallRecorder::Counts() const {
-  std::lock_guard lock(mu_);
-  return result_.counts;
+  std::lock_guard lock(shared_->mu);
+  return shared_->result.counts;
+}
+
+std::string HallRecorder::SinkError() const {
+  std::lock_guard lock(shared_->mu);
+  return shared_->sink_error;
 }
 
 bool HallRecorder::SendStartCommands(std::string* why) {
@@ -138,12 +195,12 @@ bool HallRecorder::TrimToDuration(hall_mcu::HallBatch* batch) {
 }
 
 void HallRecorder::Finish(RecorderEnd end, std::string message) {
-  std::lock_guard lock(mu_);
-  result_.end = end;
-  result_.message = std::move(message);
-  result_.counts.driver = sensor_.counters();
-  reader_done_ = true;
-  cv_.notify_all();
+  std::lock_guard lock(shared_->mu);
+  shared_->result.end = end;
+  shared_->result.message = std::move(message);
+  shared_->result.counts.driver = sensor_.counters();
+  shared_->reader_done = true;
+  shared_->cv.notify_all();
 }
 
 void HallRecorder::ReaderLoop() {
@@ -158,8 +215,8 @@ void HallRecorder::ReaderLoop() {
   hall_mcu::HallBatch batch;
   while (end == RecorderEnd::kRunning) {
     {
-      std::lock_guard lock(mu_);
-      if (stop_requested_) {
+      std::lock_guard lock(shared_->mu);
+      if (shared_->stop_requested) {
         end = RecorderEnd::kStopped;
         break;
       }
@@ -170,21 +227,22 @@ void HallRecorder::ReaderLoop() {
     const bool end_of_data = batch.end_of_data;
     const hall_mcu::HallCounters counters = sensor_.counters();
     {
-      std::lock_guard lock(mu_);
-      HallRecorderCounts& c = result_.counts;
+      std::lock_guard lock(shared_->mu);
+      HallRecorderCounts& c = shared_->result.counts;
       c.driver = counters;
       c.seconds_recorded = (elapsed_before_epoch_us_ + (epoch_last_us_ - epoch_first_us_)) * 1e-6;
       if (!batch.empty()) {
-        if (queue_.size() >= options_.queue_capacity) {
+        // A failed sink takes nothing more: what it would have been given is dropped.
+        if (shared_->queue.size() >= options_.queue_capacity || !shared_->sink_error.empty()) {
           ++c.batches_dropped;
           c.readings_dropped += batch.readings.size();
         } else {
           c.readings_delivered += batch.readings.size();
           c.edges_delivered += batch.edges.size();
           c.marg_delivered += batch.marg.size();
-          queue_.push_back(std::move(batch));
+          shared_->queue.push_back(std::move(batch));
           batch = hall_mcu::HallBatch{};
-          cv_.notify_all();
+          shared_->cv.notify_all();
         }
       }
     }
@@ -214,17 +272,49 @@ void HallRecorder::ReaderLoop() {
   Finish(end, message);
 }
 
-void HallRecorder::SinkLoop() {
-  std::unique_lock lock(mu_);
+void HallRecorder::SinkLoop(const std::shared_ptr<Shared>& shared) {
+  Shared& s = *shared;
+  std::unique_lock lock(s.mu);
   while (true) {
-    cv_.wait(lock, [&] { return !queue_.empty() || reader_done_; });
-    if (queue_.empty() && reader_done_) return;
-    hall_mcu::HallBatch batch = std::move(queue_.front());
-    queue_.pop_front();
+    s.cv.wait(lock, [&] { return !s.queue.empty() || s.reader_done; });
+    if (s.queue.empty() && s.reader_done) break;
+    hall_mcu::HallBatch batch = std::move(s.queue.front());
+    s.queue.pop_front();
+    s.sink_call_started = std::chrono::steady_clock::now();
     lock.unlock();
-    sink_(batch);
+    std::string error;
+    try {
+      s.sink(batch);
+    } catch (const std::exception& e) {
+      error = e.what();
+      if (error.empty()) error = "exception without a message";
+    } catch (...) {
+      error = "unknown exception";
+    }
     lock.lock();
+    s.sink_call_started.reset();
+    if (!error.empty()) {
+      // Stop the recording; the failed batch and everything still queued are lost to the sink.
+      s.sink_error = error;
+      s.stop_requested = true;
+      HallRecorderCounts& c = s.result.counts;
+      auto drop = [&c](const hall_mcu::HallBatch& b) {
+        ++c.batches_dropped;
+        c.readings_dropped += b.readings.size();
+        c.readings_delivered -= b.readings.size();
+        c.edges_delivered -= b.edges.size();
+        c.marg_delivered -= b.marg.size();
+      };
+      drop(batch);
+      for (const auto& b : s.queue) drop(b);
+      s.queue.clear();
+      s.cv.notify_all();
+      break;
+    }
+    s.cv.notify_all();  // Wait() watches the progress of the sink
   }
+  s.sink_done = true;
+  s.cv.notify_all();
 }
 
 }  // namespace msmcal::acquisition

@@ -48,7 +48,18 @@ struct ChannelLimits {
   std::string Validate(const std::string& field) const;  // empty when valid
 };
 
-// Empty when `setup` respects `limits`; otherwise names the channel, field, value and limit.
+// What a Keysight 33520B channel can produce (sources in keysight33500.cc). Voltages are into
+// `load_ohm` as the instrument interprets them (kHighZ: open circuit); the output has a 50 ohm
+// source impedance, so the open-circuit maximum scales by load / (load + 50).
+double Max33520bVppInto(double load_ohm);    // 10 Vpp into 50 ohm, 20 Vpp open circuit
+double Max33520bPeakVInto(double load_ohm);  // |offset| + Vpp/2: 5 V into 50 ohm, 10 V open
+// Empty when `limits` (field name `field`) are finite and inside what the instrument can do
+// into `load_ohm`; otherwise names the field, its value and the instrument's bound.
+std::string CheckAgainstInstrument(const std::string& field, const ChannelLimits& limits,
+                                   double load_ohm);
+
+// Empty when `setup` respects `limits` and the instrument's own range; otherwise names the
+// channel, field, value and limit.
 std::string CheckLimits(const std::string& channel_name, const ChannelSetup& setup,
                         const ChannelLimits& limits);
 

@@ -29,19 +29,75 @@ const char* WaveformName(Waveform w) {
   return "SIN";
 }
 
+// What the 33520B can do. Keysight 33500 Series Operating and Service Guide, APPLy subsystem
+// (https://manualshive.com/en/manual/agilent-technologies/agilent-33500-series/2867488?page=168):
+// amplitude 1 mVpp to 10 Vpp into 50 ohm, twice that into an open circuit; offset +-5 V into
+// 50 ohm, +-10 V into an open circuit, with |Voffset| <= Vmax - Vpp/2 (Vmax 5 V into 50 ohm,
+// 10 V high-Z); output termination 1 ohm to 10 kohm or infinite (same guide, "Output
+// Termination"). Frequency by function (33500B-series data sheet, 33520B): sine, square and
+// pulse up to 30 MHz (ramp 200 kHz; not used by this driver); arbitrary waveforms up to
+// 160 MSa/s (the rig configuration's trigger.max_sample_rate_sps).
+namespace {
+constexpr double kSourceOhm = 50.0;
+constexpr double kMaxVppOpen = 20.0;
+constexpr double kMaxPeakOpen = 10.0;
+constexpr double kMinLoadOhm = 1.0;
+constexpr double kMaxLoadOhm = 10e3;
+constexpr double kMaxFrequencyHz = 30e6;  // sine, square, pulse
+constexpr double kMaxArbSampleRateSps = 160e6;
+
+double LoadFactor(double load_ohm) {
+  return std::isinf(load_ohm) ? 1.0 : load_ohm / (load_ohm + kSourceOhm);
+}
+
+bool ValidLoad(double load_ohm) {
+  return (load_ohm >= kMinLoadOhm && load_ohm <= kMaxLoadOhm) ||
+         (std::isinf(load_ohm) && load_ohm > 0);
+}
+}  // namespace
+
+double Max33520bVppInto(double load_ohm) { return kMaxVppOpen * LoadFactor(load_ohm); }
+double Max33520bPeakVInto(double load_ohm) { return kMaxPeakOpen * LoadFactor(load_ohm); }
+
 std::string ChannelLimits::Validate(const std::string& field) const {
   std::ostringstream os;
-  if (!(max_vpp >= 0.0)) {
-    os << field << ".max_vpp = " << max_vpp << ": must be >= 0";
-  } else if (!(max_abs_offset_v >= 0.0)) {
-    os << field << ".max_abs_offset_v = " << max_abs_offset_v << ": must be >= 0";
-  } else if (!(min_frequency_hz >= 0.0)) {
-    os << field << ".min_frequency_hz = " << min_frequency_hz << ": must be >= 0";
-  } else if (!(max_frequency_hz >= min_frequency_hz)) {
-    os << field << ".max_frequency_hz = " << max_frequency_hz << ": must be >= min_frequency_hz ("
-       << min_frequency_hz << ")";
-  } else if (!(max_duty > 0.0 && max_duty <= 1.0)) {
-    os << field << ".max_duty = " << max_duty << ": must be in (0, 1]";
+  os.precision(10);
+  auto bad = [&](const char* name, double v, const std::string& constraint) {
+    os << field << "." << name << " = " << v << ": " << constraint;
+    return os.str();
+  };
+  if (!(std::isfinite(max_vpp) && max_vpp >= 0.0 && max_vpp <= kMaxVppOpen))
+    return bad("max_vpp", max_vpp, "must be finite, in [0, 20] Vpp (33520B open-circuit maximum)");
+  if (!(std::isfinite(max_abs_offset_v) && max_abs_offset_v >= 0.0 &&
+        max_abs_offset_v <= kMaxPeakOpen))
+    return bad("max_abs_offset_v", max_abs_offset_v,
+               "must be finite, in [0, 10] V (33520B open-circuit maximum)");
+  if (!(std::isfinite(min_frequency_hz) && min_frequency_hz >= 0.0))
+    return bad("min_frequency_hz", min_frequency_hz, "must be finite and >= 0");
+  if (!(std::isfinite(max_frequency_hz) && max_frequency_hz >= min_frequency_hz &&
+        max_frequency_hz <= kMaxFrequencyHz)) {
+    os << field << ".max_frequency_hz = " << max_frequency_hz
+       << ": must be finite, >= min_frequency_hz (" << min_frequency_hz
+       << ") and <= 3e+07 Hz (33520B maximum)";
+    return os.str();
+  }
+  if (!(max_duty > 0.0 && max_duty <= 1.0)) return bad("max_duty", max_duty, "must be in (0, 1]");
+  return "";
+}
+
+std::string CheckAgainstInstrument(const std::string& field, const ChannelLimits& l,
+                                   double load_ohm) {
+  std::ostringstream os;
+  os.precision(10);
+  if (!ValidLoad(load_ohm)) {
+    os << field << ": load_ohm = " << load_ohm << ": must be in [1, 10000] ohm or inf (high-Z)";
+  } else if (l.max_vpp > Max33520bVppInto(load_ohm) * (1 + 1e-12)) {
+    os << field << ".max_vpp = " << l.max_vpp << ": above what the 33520B delivers into "
+       << load_ohm << " ohm (" << Max33520bVppInto(load_ohm) << " Vpp)";
+  } else if (l.max_abs_offset_v > Max33520bPeakVInto(load_ohm) * (1 + 1e-12)) {
+    os << field << ".max_abs_offset_v = " << l.max_abs_offset_v
+       << ": above what the 33520B delivers into " << load_ohm << " ohm ("
+       << Max33520bPeakVInto(load_ohm) << " V)";
   }
   return os.str();
 }
@@ -78,8 +134,23 @@ std::string CheckLimits(const std::string& channel_name, const ChannelSetup& s,
        << ", " << l.max_frequency_hz << "] Hz";
   } else if (duty > l.max_duty + 1e-12) {
     os << who << ": duty = " << duty << " exceeds max_duty = " << l.max_duty;
-  } else if (!(s.load_ohm > 0.0)) {
-    os << who << ": load_ohm = " << s.load_ohm << " must be > 0 (or inf for high-Z)";
+  } else if (!ValidLoad(s.load_ohm)) {
+    os << who << ": load_ohm = " << s.load_ohm << " must be in [1, 10000] ohm (or inf for high-Z)";
+  } else if (!(std::isfinite(s.amplitude_vpp) &&
+               s.amplitude_vpp <= Max33520bVppInto(s.load_ohm) * (1 + 1e-12))) {
+    os << who << ": amplitude_vpp = " << s.amplitude_vpp << " above the 33520B's "
+       << Max33520bVppInto(s.load_ohm) << " Vpp into " << s.load_ohm << " ohm";
+  } else if (!(std::abs(s.offset_v) + 0.5 * s.amplitude_vpp <=
+               Max33520bPeakVInto(s.load_ohm) * (1 + 1e-12))) {
+    os << who << ": |offset_v| + amplitude_vpp/2 = " << std::abs(s.offset_v) + 0.5 * s.amplitude_vpp
+       << " above the 33520B's " << Max33520bPeakVInto(s.load_ohm) << " V into " << s.load_ohm
+       << " ohm";
+  } else if (s.waveform != Waveform::kDc && s.waveform != Waveform::kArb &&
+             !(frequency <= kMaxFrequencyHz)) {
+    os << who << ": frequency_hz = " << frequency << " above the 33520B's 3e+07 Hz";
+  } else if (s.waveform == Waveform::kArb && !(s.arb_sample_rate_sps <= kMaxArbSampleRateSps)) {
+    os << who << ": arb_sample_rate_sps = " << s.arb_sample_rate_sps
+       << " above the 33520B's 1.6e+08 Sa/s";
   }
   return os.str();
 }

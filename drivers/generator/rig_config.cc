@@ -38,20 +38,28 @@ class Reader {
     return n;
   }
 
+  // A finite number; `inf` (high impedance) only where `allow_inf` (load_ohm fields).
   double Number(const YAML::Node& parent, const std::string& key, const std::string& field,
-                std::optional<double> def = std::nullopt) const {
+                std::optional<double> def = std::nullopt, bool allow_inf = false) const {
     const YAML::Node n = parent[key];
     if (!n) {
       if (def) return *def;
       Fail(parent, field, "missing");
     }
     const std::string text = n.IsScalar() ? n.Scalar() : "";
-    if (text == "inf" || text == "INF" || text == ".inf") return kHighZ;
+    if (allow_inf && (text == "inf" || text == "INF" || text == ".inf")) return kHighZ;
+    double v = 0;
     try {
-      return n.as<double>();
+      v = n.as<double>();
     } catch (const YAML::Exception&) {
       Fail(n, field, "must be a number, got '" + text + "'");
     }
+    if (!std::isfinite(v)) {
+      Fail(n, field,
+           "must be a finite number, got '" + text + "'" +
+               (allow_inf ? "" : " (inf is accepted only for load_ohm: high impedance)"));
+    }
+    return v;
   }
 
   int Int(const YAML::Node& parent, const std::string& key, const std::string& field,
@@ -128,7 +136,7 @@ LogicLevels ReadLevels(const Reader& r, const YAML::Node& sig, const std::string
   LogicLevels l;
   l.low_v = r.Number(n, "low_v", f + ".low_v");
   l.high_v = r.Number(n, "high_v", f + ".high_v");
-  l.load_ohm = r.Number(n, "load_ohm", f + ".load_ohm", kHighZ);
+  l.load_ohm = r.Number(n, "load_ohm", f + ".load_ohm", kHighZ, /*allow_inf=*/true);
   return l;
 }
 
@@ -154,7 +162,8 @@ RigGeneratorConfig ParseRigGeneratorConfig(const std::string& yaml_text,
       r.Map(sig, "drive", "generators.signals.drive", {"fast", "slow", "load_ohm"});
   c.signals.fast = ReadSine(r, drive, "fast");
   c.signals.slow = ReadSine(r, drive, "slow");
-  c.signals.coil_load_ohm = r.Number(drive, "load_ohm", "generators.signals.drive.load_ohm", 50.0);
+  c.signals.coil_load_ohm = r.Number(drive, "load_ohm", "generators.signals.drive.load_ohm", 50.0,
+                                     /*allow_inf=*/true);
   c.signals.laser = ReadLevels(r, sig, "laser");
   c.signals.clock = ReadLevels(r, sig, "clock");
   const std::string tf = "generators.signals.trigger";
@@ -197,6 +206,36 @@ std::string RigGeneratorConfig::Validate() const {
   }
   if (!(signals.coil_load_ohm > 0.0)) {
     os << "generators.signals.drive.load_ohm = " << signals.coil_load_ohm << ": must be > 0";
+    return os.str();
+  }
+  // Each channel's limits against what the 33520B delivers into the load it is wired to.
+  const std::pair<const Keysight33500Options*, int> channels[] = {
+      {&unit1, 1}, {&unit1, 2}, {&unit2, 1}, {&unit2, 2}};
+  const double loads[] = {signals.coil_load_ohm, signals.coil_load_ohm, signals.laser.load_ohm,
+                          signals.clock.load_ohm};
+  std::set<std::string> roles;
+  for (size_t k = 0; k < 4; ++k) {
+    const auto& [unit, ch] = channels[k];
+    const std::string field =
+        "generators." + unit->name + ".channels." + std::to_string(ch) + ".limits";
+    const ChannelLimits& l = unit->limits[ch - 1];
+    if (std::string e = CheckAgainstInstrument(field, l, loads[k]); !e.empty()) return e;
+    if (!roles.insert(l.role).second) {
+      return "generators." + unit->name + ".channels." + std::to_string(ch) + ".role = '" + l.role +
+             "': another channel has the same role (each channel drives one thing)";
+    }
+  }
+  // The laser trigger is a train of sparse pulses: a duty limit near 1 would let the laser fire
+  // continuously (config/rig.yaml: 0.01).
+  const ChannelLimits& laser = unit2.limits[0];
+  if (!(laser.max_duty <= kMaxLaserDuty)) {
+    os << "generators." << unit2.name << ".channels.1.max_duty = " << laser.max_duty
+       << ": the laser trigger's duty limit must be <= " << kMaxLaserDuty;
+    return os.str();
+  }
+  if (!(signals.trigger.max_duty <= kMaxLaserDuty)) {
+    os << "generators.signals.trigger.max_duty = " << signals.trigger.max_duty
+       << ": must be <= " << kMaxLaserDuty << " (sparse laser pulses)";
     return os.str();
   }
   RigSignalPlan plan;

@@ -25,12 +25,17 @@ struct RigSignalsConfig {
   signal::TriggerDesignOptions trigger;
 };
 
+// Highest duty a laser trigger limit (generator 2 channel 1, signals.trigger.max_duty) may allow.
+inline constexpr double kMaxLaserDuty = 0.1;
+
 struct RigGeneratorConfig {
   Keysight33500Options unit1;  // master: drives, 10 MHz out, trigger out
   Keysight33500Options unit2;  // slave: laser trigger and clock, external reference and trigger
   RigSignalsConfig signals;
-  // Checks every field and that the designed signals respect the channel limits. Empty when
-  // valid; otherwise names the field, its value and the constraint.
+  // Checks every field (finite, inside what a 33520B delivers into the configured loads, one
+  // role per channel, laser duty limits <= kMaxLaserDuty) and that the designed signals respect
+  // the channel limits. Empty when valid; otherwise names the field, its value and the
+  // constraint.
   std::string Validate() const;
 };
 

@@ -61,16 +61,22 @@ class SerialHallMcu final : public HallSensor {
     if (ec) {
       throw std::runtime_error("hall mcu: cannot open " + options.device + ": " + ec.message());
     }
-    port_.set_option(asio::serial_port_base::baud_rate(options.baud_rate), ec);
-    port_.set_option(asio::serial_port_base::character_size(8), ec);
-    port_.set_option(asio::serial_port_base::parity(asio::serial_port_base::parity::none), ec);
-    port_.set_option(asio::serial_port_base::stop_bits(asio::serial_port_base::stop_bits::one), ec);
-    port_.set_option(
-        asio::serial_port_base::flow_control(asio::serial_port_base::flow_control::none), ec);
-    if (ec) {
-      throw std::runtime_error("hall mcu: cannot configure " + options.device + ": " +
-                               ec.message());
-    }
+    // Each option is checked on its own: one error code for all would keep only the last one.
+    auto set = [&](const auto& option, const std::string& what) {
+      error_code e;
+      port_.set_option(option, e);
+      if (e) {
+        throw std::runtime_error("hall mcu: cannot configure " + options.device + ": " + what +
+                                 ": " + e.message());
+      }
+    };
+    set(asio::serial_port_base::baud_rate(options.baud_rate),
+        "baud_rate " + std::to_string(options.baud_rate));
+    set(asio::serial_port_base::character_size(8), "8 data bits");
+    set(asio::serial_port_base::parity(asio::serial_port_base::parity::none), "no parity");
+    set(asio::serial_port_base::stop_bits(asio::serial_port_base::stop_bits::one), "1 stop bit");
+    set(asio::serial_port_base::flow_control(asio::serial_port_base::flow_control::none),
+        "no flow control");
   }
 
   CommandResult Identify(DeviceInfo* info) override {

@@ -9,8 +9,10 @@
 
 #include <boost/asio.hpp>
 #include <chrono>
+#include <condition_variable>
 #include <mutex>
 #include <sstream>
+#include <thread>
 
 #include "drivers/scpi/scpi_text.h"
 
@@ -160,6 +162,84 @@ struct ScpiClient::Impl {
   }
 };
 
+namespace detail {
+
+std::optional<std::vector<std::string>> CallWithin(std::function<std::vector<std::string>()> lookup,
+                                                   int timeout_ms) {
+  struct State {
+    std::mutex mu;
+    std::condition_variable cv;
+    bool done = false;
+    std::vector<std::string> result;
+    std::exception_ptr error;
+  };
+  auto state = std::make_shared<State>();
+  std::thread([state, lookup = std::move(lookup)] {
+    std::vector<std::string> r;
+    std::exception_ptr e;
+    try {
+      r = lookup();
+    } catch (...) {
+      e = std::current_exception();
+    }
+    std::lock_guard lock(state->mu);
+    state->result = std::move(r);
+    state->error = e;
+    state->done = true;
+    state->cv.notify_all();
+  }).detach();
+  std::unique_lock lock(state->mu);
+  if (!state->cv.wait_for(lock, std::chrono::milliseconds(timeout_ms), [&] { return state->done; }))
+    return std::nullopt;
+  if (state->error) std::rethrow_exception(state->error);
+  return std::move(state->result);
+}
+
+}  // namespace detail
+
+namespace {
+
+// The addresses of `host` (a numeric address needs no lookup), resolved before `deadline`.
+// Throws kConnectFailed naming the endpoint when the lookup fails or takes too long.
+std::vector<tcp::endpoint> ResolveBefore(const std::string& host, int port, SteadyTime deadline,
+                                         const std::string& endpoint) {
+  boost::system::error_code ec;
+  const asio::ip::address numeric = asio::ip::make_address(host, ec);
+  if (!ec) return {tcp::endpoint(numeric, static_cast<uint16_t>(port))};
+  const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(
+      deadline - std::chrono::steady_clock::now());
+  std::optional<std::vector<std::string>> addresses;
+  try {
+    addresses = detail::CallWithin(
+        [host, port] {
+          asio::io_context io;
+          tcp::resolver resolver(io);
+          boost::system::error_code e;
+          const auto results = resolver.resolve(host, std::to_string(port), e);
+          if (e) throw std::runtime_error(e.message());
+          std::vector<std::string> out;
+          for (const auto& r : results) out.push_back(r.endpoint().address().to_string());
+          return out;
+        },
+        static_cast<int>(std::max<int64_t>(0, left.count())));
+  } catch (const std::exception& e) {
+    throw ScpiError(ErrorKind::kConnectFailed,
+                    endpoint + ": cannot resolve host (" + std::string(e.what()) + ")");
+  }
+  if (!addresses) {
+    throw ScpiError(ErrorKind::kConnectFailed,
+                    endpoint + ": cannot resolve host within the connect timeout");
+  }
+  std::vector<tcp::endpoint> out;
+  for (const auto& a : *addresses)
+    out.emplace_back(asio::ip::make_address(a), static_cast<uint16_t>(port));
+  if (out.empty())
+    throw ScpiError(ErrorKind::kConnectFailed, endpoint + ": cannot resolve host (no address)");
+  return out;
+}
+
+}  // namespace
+
 ScpiClient::ScpiClient(ScpiClientOptions options, ClockNs clock_ns)
     : options_(std::move(options)), impl_(std::make_unique<Impl>()) {
   if (const std::string err = options_.Validate(); !err.empty()) {
@@ -184,12 +264,9 @@ void ScpiClient::Connect() {
   const auto deadline =
       std::chrono::steady_clock::now() + std::chrono::milliseconds(options_.connect_timeout_ms);
   boost::system::error_code ec;
-  tcp::resolver resolver(s.io);
-  const auto endpoints = resolver.resolve(options_.host, std::to_string(options_.port), ec);
-  if (ec) {
-    throw ScpiError(ErrorKind::kConnectFailed,
-                    s.endpoint + ": cannot resolve host (" + ec.message() + ")");
-  }
+  // Name resolution counts against the connect timeout.
+  const std::vector<tcp::endpoint> endpoints =
+      ResolveBefore(options_.host, options_.port, deadline, s.endpoint);
   boost::system::error_code result;
   asio::async_connect(s.socket, endpoints,
                       [&s, &result](const boost::system::error_code& e, const tcp::endpoint&) {

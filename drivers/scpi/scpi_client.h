@@ -7,6 +7,7 @@
 #include <cstdint>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -94,5 +95,14 @@ class ScpiClient {
   ScpiClientOptions options_;
   std::unique_ptr<Impl> impl_;
 };
+
+namespace detail {
+// Runs `lookup` (a blocking name resolution: getaddrinfo cannot be cancelled) on a thread of its
+// own and waits at most `timeout_ms` for it. Returns its result (rethrows what it threw), or
+// nullopt when it did not finish in time; the thread then finishes on its own and owns all it
+// touches. ScpiClient::Connect resolves through it inside connect_timeout_ms; exposed for tests.
+std::optional<std::vector<std::string>> CallWithin(std::function<std::vector<std::string>()> lookup,
+                                                   int timeout_ms);
+}  // namespace detail
 
 }  // namespace msmcal::scpi

@@ -459,11 +459,67 @@ class YamlReader {
     return out;
   }
 
+  // Range-checked values: a value outside fails naming the file, line, field, the value and the
+  // allowed range.
+  struct Range {
+    double lo, hi;
+    bool lo_open = false, hi_open = false;  // (lo, ...] / [..., hi)
+    bool Contains(double v) const {
+      return (lo_open ? v > lo : v >= lo) && (hi_open ? v < hi : v <= hi);
+    }
+    std::string Text() const {
+      return std::string(lo_open ? "(" : "[") + common::YamlDouble(lo) + ", " +
+             common::YamlDouble(hi) + (hi_open ? ")" : "]");
+    }
+  };
+  double AsDoubleIn(const YAML::Node& n, const std::string& path, const Range& r) const {
+    const double v = AsDouble(n, path);
+    if (!r.Contains(v))
+      FailAt(n, path, "value " + common::YamlDouble(v) + " outside the allowed range " + r.Text());
+    return v;
+  }
+  double DoubleIn(const YAML::Node& map, const std::string& key, const std::string& field,
+                  const Range& r) const {
+    return AsDoubleIn(Get(map, key, field), Join(field, key), r);
+  }
+  int AsIntIn(const YAML::Node& n, const std::string& path, int lo, int hi) const {
+    const int v = AsInt(n, path);
+    if (v < lo || v > hi) {
+      FailAt(n, path,
+             "value " + std::to_string(v) + " outside the allowed range [" + std::to_string(lo) +
+                 ", " + std::to_string(hi) + "]");
+    }
+    return v;
+  }
+  int IntIn(const YAML::Node& map, const std::string& key, const std::string& field, int lo,
+            int hi) const {
+    return AsIntIn(Get(map, key, field), Join(field, key), lo, hi);
+  }
+
   const std::string& display() const { return display_; }
 
  private:
   std::string display_;
 };
+
+// Allowed ranges of session.yaml and camera.yaml values (interchange-format.md). Wide enough for
+// any real rig; their purpose is to stop absurd values (a 2e9 x 2e9 board, a zero square, a
+// negative pose index) at the file instead of deep inside the solver.
+namespace ranges {
+using R = YamlReader::Range;
+constexpr int kMinCorners = 2, kMaxCorners = 1000;  // inner corners per board direction
+const R kSquareMm{0, 1000, /*lo_open=*/true};
+constexpr int kMaxId = 1'000'000;  // beam ids, trigger indices, pose indices: [0, kMaxId]
+// Drive and clock: a Keysight 33520B (30 MHz, 20 Vpp open circuit at most).
+const R kFrequencyHz{0, 30e6, /*lo_open=*/true};
+const R kAmplitudeVpp{0, 20};
+const R kPhaseDeg{-360, 360};
+const R kPatternPeriodS{0, 1e4, /*lo_open=*/true};
+constexpr int kMaxImageSide = 100'000;  // pixels
+const R kFocalPx{0, 1e7, /*lo_open=*/true};
+const R kRadialDistortion{-1000, 1000};  // k1, k2, k3
+const R kTangentialDistortion{-1, 1};    // p1, p2
+}  // namespace ranges
 
 std::string YamlDouble(double v) { return common::YamlDouble(v); }
 
@@ -539,9 +595,11 @@ dataset::BoardSpec ParseBoard(const YamlReader& y, const YAML::Node& boards, con
   y.ExpectMap(b, field);
   const YAML::Node corners = y.Sequence(b, "inner_corners", field, 2);
   dataset::BoardSpec spec;
-  spec.cols = y.AsInt(corners[0], field + ".inner_corners[0]");
-  spec.rows = y.AsInt(corners[1], field + ".inner_corners[1]");
-  spec.square_mm = y.Double(b, "square_mm", field);
+  spec.cols =
+      y.AsIntIn(corners[0], field + ".inner_corners[0]", ranges::kMinCorners, ranges::kMaxCorners);
+  spec.rows =
+      y.AsIntIn(corners[1], field + ".inner_corners[1]", ranges::kMinCorners, ranges::kMaxCorners);
+  spec.square_mm = y.DoubleIn(b, "square_mm", field, ranges::kSquareMm);
   return spec;
 }
 
@@ -549,9 +607,9 @@ dataset::DriveAxis ParseAxis(const YamlReader& y, const YAML::Node& drive, const
   const std::string field = std::string("drive.") + key;
   const YAML::Node a = y.Get(drive, key, "drive");
   dataset::DriveAxis axis;
-  axis.frequency_hz = y.Double(a, "frequency_hz", field);
-  axis.amplitude_vpp = y.Double(a, "amplitude_vpp", field);
-  axis.phase_deg = y.Double(a, "phase_deg", field);
+  axis.frequency_hz = y.DoubleIn(a, "frequency_hz", field, ranges::kFrequencyHz);
+  axis.amplitude_vpp = y.DoubleIn(a, "amplitude_vpp", field, ranges::kAmplitudeVpp);
+  axis.phase_deg = y.DoubleIn(a, "phase_deg", field, ranges::kPhaseDeg);
   return axis;
 }
 
@@ -637,7 +695,7 @@ void ParseSession(const std::string& text, const std::string& display, dataset::
   for (size_t i = 0; i < beams.size(); ++i) {
     const std::string field = "beams[" + std::to_string(i) + "]";
     dataset::BeamSpec b;
-    b.id = y.Int(beams[i], "id", field);
+    b.id = y.IntIn(beams[i], "id", field, 0, ranges::kMaxId);
     const std::string role = y.String(beams[i], "role", field);
     if (role == "estimate") {
       b.role = BeamRole::kEstimate;
@@ -654,18 +712,20 @@ void ParseSession(const std::string& text, const std::string& display, dataset::
   const YAML::Node drive = y.Get(root, "drive", "");
   rec->drive.fast = ParseAxis(y, drive, "fast");
   rec->drive.slow = ParseAxis(y, drive, "slow");
-  rec->drive.pattern_period_s = y.Double(drive, "pattern_period_s", "drive");
+  rec->drive.pattern_period_s =
+      y.DoubleIn(drive, "pattern_period_s", "drive", ranges::kPatternPeriodS);
 
   const YAML::Node clock = y.Get(root, "clock", "");
-  rec->clock_frequency_hz = y.Double(clock, "frequency_hz", "clock");
+  rec->clock_frequency_hz = y.DoubleIn(clock, "frequency_hz", "clock", ranges::kFrequencyHz);
 
   const YAML::Node triggers = y.Sequence(root, "triggers", "");
   rec->triggers.clear();
   for (size_t i = 0; i < triggers.size(); ++i) {
     const std::string field = "triggers[" + std::to_string(i) + "]";
     dataset::Trigger t;
-    t.j = y.Int(triggers[i], "j", field);
-    t.t_s = y.Double(triggers[i], "t_s", field);
+    t.j = y.IntIn(triggers[i], "j", field, 0, ranges::kMaxId);
+    // A pulse time within the pattern period.
+    t.t_s = y.DoubleIn(triggers[i], "t_s", field, {0, rec->drive.pattern_period_s});
     rec->triggers.push_back(t);
     lines.triggers.push_back(YamlReader::Line(triggers[i]));
   }
@@ -676,7 +736,7 @@ void ParseSession(const std::string& text, const std::string& display, dataset::
     const std::string field = "step1.frames[" + std::to_string(i) + "]";
     dataset::Step1Frame f;
     f.file = y.String(step1[i], "file", field);
-    f.pose = y.Int(step1[i], "pose", field);
+    f.pose = y.IntIn(step1[i], "pose", field, 0, ranges::kMaxId);
     f.beams = y.IntList(step1[i], "beams", field);
     rec->step1.push_back(f);
     lines.step1.push_back(YamlReader::Line(step1[i]));
@@ -719,8 +779,8 @@ geometry::CameraModel ParseCamera(const std::string& text, const std::string& di
   if (!root.IsMap()) Fail(display, YamlReader::Line(root), "expected a mapping at the top level");
   geometry::CameraModel cam;
   const YAML::Node size = y.Sequence(root, "image_size", "", 2);
-  cam.width = y.AsInt(size[0], "image_size[0]");
-  cam.height = y.AsInt(size[1], "image_size[1]");
+  cam.width = y.AsIntIn(size[0], "image_size[0]", 1, ranges::kMaxImageSide);
+  cam.height = y.AsIntIn(size[1], "image_size[1]", 1, ranges::kMaxImageSide);
   const YAML::Node k = y.Sequence(root, "K", "", 3);
   double m[3][3];
   for (int r = 0; r < 3; ++r) {
@@ -735,13 +795,17 @@ geometry::CameraModel ParseCamera(const std::string& text, const std::string& di
   if (m[0][1] != 0 || m[1][0] != 0 || m[2][0] != 0 || m[2][1] != 0 || m[2][2] != 1) {
     y.FailAt(k, "K", "expected [[fx, 0, cx], [0, fy, cy], [0, 0, 1]] (no skew)");
   }
-  cam.fx = m[0][0];
-  cam.cx = m[0][2];
-  cam.fy = m[1][1];
-  cam.cy = m[1][2];
+  // Focal lengths positive; the principal point within one image size of the image.
+  cam.fx = y.AsDoubleIn(k[0][0], "K[0][0]", ranges::kFocalPx);
+  cam.cx = y.AsDoubleIn(k[0][2], "K[0][2]", {-1.0 * cam.width, 2.0 * cam.width});
+  cam.fy = y.AsDoubleIn(k[1][1], "K[1][1]", ranges::kFocalPx);
+  cam.cy = y.AsDoubleIn(k[1][2], "K[1][2]", {-1.0 * cam.height, 2.0 * cam.height});
   const YAML::Node dist = y.Sequence(root, "distortion", "", 5);
   for (int i = 0; i < 5; ++i) {
-    cam.distortion[i] = y.AsDouble(dist[i], "distortion[" + std::to_string(i) + "]");
+    const bool tangential = i == 2 || i == 3;  // k1 k2 p1 p2 k3
+    cam.distortion[i] =
+        y.AsDoubleIn(dist[i], "distortion[" + std::to_string(i) + "]",
+                     tangential ? ranges::kTangentialDistortion : ranges::kRadialDistortion);
   }
   const std::string problem = cam.Validate();
   if (!problem.empty()) Fail(display, YamlReader::Line(root), problem);
@@ -804,6 +868,20 @@ void WriteImageAtomically(const std::filesystem::path& file, const cv::Mat& imag
   WriteFileAtomically(file, std::string(png.begin(), png.end()));
 }
 
+std::string ImageProblem(const cv::Mat& image, const geometry::CameraModel& camera) {
+  if ((image.depth() != CV_8U && image.depth() != CV_16U) ||
+      (image.channels() != 1 && image.channels() != 3)) {
+    return "expected 8- or 16-bit mono or BGR, got depth " + std::to_string(image.depth()) +
+           " with " + std::to_string(image.channels()) + " channels";
+  }
+  if (image.cols != camera.width || image.rows != camera.height) {
+    return "image is " + std::to_string(image.cols) + "x" + std::to_string(image.rows) +
+           " but camera.yaml image_size is [" + std::to_string(camera.width) + ", " +
+           std::to_string(camera.height) + "]";
+  }
+  return "";
+}
+
 void CheckImageFiles(const std::filesystem::path& dir, const dataset::Recording& recording) {
   auto check = [&](const std::string& file, const std::string& field) {
     const std::string where = file + " (" + field + ")";
@@ -823,18 +901,8 @@ void CheckImageFiles(const std::filesystem::path& dir, const dataset::Recording&
       Fail(where, 0, std::string("cannot decode: ") + e.what());
     }
     if (image.empty()) Fail(where, 0, "cannot decode the PNG");
-    if ((image.depth() != CV_8U && image.depth() != CV_16U) ||
-        (image.channels() != 1 && image.channels() != 3)) {
-      Fail(where, 0,
-           "expected 8- or 16-bit mono or BGR, got depth " + std::to_string(image.depth()) +
-               " with " + std::to_string(image.channels()) + " channels");
-    }
-    if (image.cols != recording.camera.width || image.rows != recording.camera.height) {
-      Fail(where, 0,
-           "image is " + std::to_string(image.cols) + "x" + std::to_string(image.rows) +
-               " but camera.yaml image_size is [" + std::to_string(recording.camera.width) + ", " +
-               std::to_string(recording.camera.height) + "]");
-    }
+    if (std::string problem = ImageProblem(image, recording.camera); !problem.empty())
+      Fail(where, 0, problem);
   };
   for (size_t i = 0; i < recording.step1.size(); ++i) {
     check(recording.step1[i].file, "step1.frames[" + std::to_string(i) + "].file");

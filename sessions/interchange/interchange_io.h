@@ -100,6 +100,10 @@ std::string CheckRecording(const dataset::Recording& recording);
 // Decodes every image `recording` references under `dir` and checks it is a PNG of 8 or 16 bits
 // with 1 or 3 channels and the size of camera.yaml's image_size. Throws InterchangeError naming
 // the image and the session.yaml field ("step2/0001.png (step2.frames[1].file): ...").
+// Empty when a decoded image is what the format allows (8- or 16-bit, mono or BGR) and has
+// camera.yaml's image_size; else what is wrong. CheckImageFiles and `msmcal solve` (as it reads
+// each image) apply it.
+std::string ImageProblem(const cv::Mat& image, const geometry::CameraModel& camera);
 // Slow for big images: ReadRecording does not do it; `msmcal interchange check` does.
 void CheckImageFiles(const std::filesystem::path& dir, const dataset::Recording& recording);
 

@@ -44,34 +44,51 @@ DemoRig::~DemoRig() {
 
 int DemoRig::generators_port(int unit) const { return generators_->port(unit); }
 
+namespace {
+
+// The demo rig's rig file (generators: section): the mock units on loopback and the limits of
+// the simulated mirror's coils, fixed like a lab's config/rig.yaml. A session asks for its drives
+// (the simulator's mirror options, a sweep point); the limits never follow the request, so a
+// request outside them is refused by the same checks as on the real rig.
+constexpr const char* kDemoRigYaml = R"(generators:
+  unit1:
+    host: 127.0.0.1
+    port: 1
+    channels:
+      1: {role: fast_coil, max_vpp: 4.0, max_abs_offset_v: 0.5,
+          min_frequency_hz: 100, max_frequency_hz: 400}  # around the simulated resonance, 210 Hz
+      2: {role: slow_coil, max_vpp: 8.0, max_abs_offset_v: 0.5,
+          min_frequency_hz: 0.5, max_frequency_hz: 50}
+  unit2:
+    host: 127.0.0.1
+    port: 1
+    channels:
+      1: {role: laser_trigger, max_vpp: 5.0, max_abs_offset_v: 2.5,
+          min_frequency_hz: 0.01, max_frequency_hz: 1000, max_duty: 0.01}
+      2: {role: mcu_clock, max_vpp: 3.3, max_abs_offset_v: 1.65,
+          min_frequency_hz: 0.01, max_frequency_hz: 1000}
+  signals:
+    drive:
+      fast: {frequency_hz: 205, amplitude_vpp: 2}
+      slow: {frequency_hz: 5, amplitude_vpp: 4}
+      load_ohm: 50
+    laser: {low_v: 0.0, high_v: 5.0, load_ohm: inf}
+    clock: {low_v: 0.0, high_v: 3.3, load_ohm: inf}
+    trigger: {}
+)";
+
+}  // namespace
+
 gen::RigGeneratorConfig DemoGeneratorConfig(const sim::SimOptions& sim, int port1, int port2) {
-  gen::RigGeneratorConfig c;
+  gen::RigGeneratorConfig c = gen::ParseRigGeneratorConfig(kDemoRigYaml, "demo rig file");
   const auto& m = sim.mirror;
   c.unit1.name = "generator1";
-  c.unit1.link.host = "127.0.0.1";
   c.unit1.link.port = port1;
-  c.unit1.limits[0] = {"fast_coil",
-                       2.0 * m.fast.amplitude_vpp,
-                       0.5,
-                       0.5 * m.fast.frequency_hz,
-                       1.5 * m.fast.frequency_hz,
-                       1.0};
-  c.unit1.limits[1] = {"slow_coil",
-                       2.0 * m.slow.amplitude_vpp,
-                       0.5,
-                       0.5 * m.slow.frequency_hz,
-                       1.5 * m.slow.frequency_hz,
-                       1.0};
   c.unit2.name = "generator2";
-  c.unit2.link.host = "127.0.0.1";
   c.unit2.link.port = port2;
-  c.unit2.limits[0] = {"laser_trigger", 5.0, 2.5, 0.01, 1000.0, 0.01};
-  c.unit2.limits[1] = {"mcu_clock", 3.3, 1.65, 0.01, 1000.0, 1.0};
+  // The request: the simulated session's drives.
   c.signals.fast = {m.fast.frequency_hz, m.fast.amplitude_vpp, 0.0, m.fast.phase_deg};
   c.signals.slow = {m.slow.frequency_hz, m.slow.amplitude_vpp, 0.0, m.slow.phase_deg};
-  c.signals.coil_load_ohm = 50.0;
-  c.signals.laser = {0.0, 5.0, gen::kHighZ};
-  c.signals.clock = {0.0, 3.3, gen::kHighZ};
   return c;
 }
 

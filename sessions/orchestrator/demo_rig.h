@@ -30,8 +30,8 @@ struct DemoRigOptions {
 };
 
 // The generator configuration of the demo rig for `sim`, with the mock units on loopback `port1`
-// and `port2`: limits around the simulated mirror's drive, the simulator's drive frequencies and
-// amplitudes. Also what a replay of a demo session plays (sessions/replay).
+// and `port2`: the demo rig file's fixed limits (never scaled from the request), the simulator's
+// drive frequencies and amplitudes. Also what a replay of a demo session plays (sessions/replay).
 gen::RigGeneratorConfig DemoGeneratorConfig(const sim::SimOptions& sim, int port1, int port2);
 
 class DemoRig {

@@ -282,23 +282,34 @@ RigCheckResult CheckRig(const OrchestratorOptions& options, const dataset::Recor
 }
 
 // Records one Hall recording into hall/<name>.csv through the driver; returns the recorder's
-// result. Throws when the recording ended abnormally.
-// With `during`, the recording runs while it does and is stopped when it returns; without, it
+// result. Throws when the recording ended abnormally, the sink (CSV writer) failing included.
+// With `during`, the recording runs while it does and is stopped when it returns; `during` calls
+// its argument between its own steps, which throws as soon as the sink has failed. Without, it
 // runs for max_seconds of MCU time (or to the end of the MCU's data).
-acquisition::HallRecorderResult RecordHall(hall_mcu::HallSensor& sensor, const fs::path& csv,
-                                           const OrchestratorOptions& options, double max_seconds,
-                                           const std::function<void()>& during) {
-  acquisition::HallCsvWriter writer(csv);
+acquisition::HallRecorderResult RecordHall(
+    hall_mcu::HallSensor& sensor, const fs::path& csv, const OrchestratorOptions& options,
+    double max_seconds, const std::function<void(const std::function<void()>&)>& during) {
+  // Shared with the sink: a hung sink thread is abandoned by the recorder with its captures.
+  auto writer = std::make_shared<acquisition::HallCsvWriter>(csv);
   acquisition::HallRecorderOptions ro;
   ro.max_seconds = max_seconds;
   ro.rate_hz = options.mcu_rate_hz;
   acquisition::HallRecorder recorder(
-      sensor, [&writer](const hall_mcu::HallBatch& b) { writer.Write(b); }, ro);
+      sensor,
+      [writer, hook = options.hall_sink_hook](const hall_mcu::HallBatch& b) {
+        if (hook) hook(b);
+        writer->Write(b);
+      },
+      ro);
   recorder.Start();
+  const std::string who = csv.filename().string() + ": Hall recording";
   std::exception_ptr error;
   try {
     if (during) {
-      during();
+      during([&] {
+        if (std::string e = recorder.SinkError(); !e.empty())
+          throw std::runtime_error(who + " failed: " + e);
+      });
       recorder.Stop();
     }
   } catch (...) {
@@ -306,13 +317,15 @@ acquisition::HallRecorderResult RecordHall(hall_mcu::HallSensor& sensor, const f
     recorder.Stop();
   }
   acquisition::HallRecorderResult result = recorder.Wait();
-  writer.Close();
+  const bool sink_ok = result.end != acquisition::RecorderEnd::kSinkFailed &&
+                       result.end != acquisition::RecorderEnd::kSinkHung;
+  if (sink_ok) writer->Close();
   if (error) std::rethrow_exception(error);
   if (result.end != acquisition::RecorderEnd::kEndOfData &&
       result.end != acquisition::RecorderEnd::kDuration &&
       result.end != acquisition::RecorderEnd::kStopped) {
-    throw std::runtime_error(csv.filename().string() + ": Hall recording ended: " +
-                             acquisition::ToString(result.end) + " " + result.message);
+    throw std::runtime_error(who + " ended: " + acquisition::ToString(result.end) + " " +
+                             result.message);
   }
   return result;
 }
@@ -735,10 +748,14 @@ SessionResult RunSession(const OrchestratorOptions& options, const dataset::Reco
       journal->AppendHallReadings(name, rec.readings);
       journal->AppendClockEdges(name, rec.clock_edges_us);
       journal->SetMeta("hall." + name + ".present", "1");
+      journal->SetMeta("hall." + name + ".readings_dropped",
+                       std::to_string(r.counts.readings_dropped));
       log.Line("Hall: " + name + " " + std::to_string(r.counts.readings_delivered) + " readings, " +
-               std::to_string(r.counts.edges_delivered) + " clock edges, " +
-               std::to_string(r.counts.driver.readings_lost) + " lost (" +
-               acquisition::ToString(r.end) + ")");
+                   std::to_string(r.counts.edges_delivered) + " clock edges, " +
+                   std::to_string(r.counts.driver.readings_lost) + " lost, " +
+                   std::to_string(r.counts.readings_dropped) + " dropped (recorder queue full) (" +
+                   acquisition::ToString(r.end) + ")",
+               r.counts.readings_dropped > 0 ? "warning" : "info");
     };
     auto keep_partial = [&](const std::string& name) {
       for (const auto& f : KeepPartialHall(out / "hall", name)) {
@@ -784,22 +801,25 @@ SessionResult RunSession(const OrchestratorOptions& options, const dataset::Reco
       link.device = actual_device;
       auto actual_mcu = hall_mcu::OpenHallMcu(link);
       log.Line("Hall: actual recording on " + actual_device + " during step 2");
-      const auto r = RecordHall(*actual_mcu, out / "hall" / "actual.csv", options, 0.0, [&] {
-        for (size_t i = 0; i < plan.step2.size(); ++i) {
-          const auto& f = plan.step2[i];
-          FrameOutcome fo;
-          if (!from_journal(f.file, &fo)) {
-            rig_operator.PrepareStep2Frame(i);
-            store::FrameRecord record;
-            record.step = "step2";
-            record.kind = f.kind;
-            record.beams = f.beams;
-            record.triggers = f.triggers;
-            fo = acquire(2, i, plan.step2.size(), f.file, ExpectedDots(f), record);
-          }
-          note(fo, i, plan.step2.size(), "step 2");
-        }
-      });
+      const auto r =
+          RecordHall(*actual_mcu, out / "hall" / "actual.csv", options, 0.0,
+                     [&](const std::function<void()>& check_hall) {
+                       for (size_t i = 0; i < plan.step2.size(); ++i) {
+                         check_hall();
+                         const auto& f = plan.step2[i];
+                         FrameOutcome fo;
+                         if (!from_journal(f.file, &fo)) {
+                           rig_operator.PrepareStep2Frame(i);
+                           store::FrameRecord record;
+                           record.step = "step2";
+                           record.kind = f.kind;
+                           record.beams = f.beams;
+                           record.triggers = f.triggers;
+                           fo = acquire(2, i, plan.step2.size(), f.file, ExpectedDots(f), record);
+                         }
+                         note(fo, i, plan.step2.size(), "step 2");
+                       }
+                     });
       result.actual_readings = r.counts.readings_delivered;
       result.actual_edges = r.counts.edges_delivered;
       hall_done("actual", r);

@@ -80,6 +80,9 @@ struct OrchestratorOptions {
   double background_seconds = 12.0;
   // Test hook: throw after this many accepted frames (< 0: never) to exercise the safe state.
   int fail_after_frames = -1;
+  // Test hook: every Hall batch passes through it on the recorder's sink thread before the CSV
+  // writer (empty: none). A hook that throws stands for a failing sink (disk full on hall/).
+  std::function<void(const hall_mcu::HallBatch&)> hall_sink_hook;
   // Called after every gate decision (may be empty).
   FrameObserver on_frame;
   // Journal metadata (session.db meta keys rig_id, mirror_id, note, run.kind, config_yaml).

@@ -17,6 +17,7 @@
 #include "processing/geometry/plane_line.h"
 #include "processing/solver/home_frame.h"
 #include "sessions/interchange/interchange_io.h"
+#include "sessions/store/session_store.h"
 
 namespace msmcal::orchestrator {
 
@@ -82,6 +83,28 @@ double Rms(const std::vector<double>& v) {
   double s = 0;
   for (double x : v) s += x * x;
   return v.empty() ? 0 : std::sqrt(s / v.size());
+}
+
+// The Hall readings the recorder dropped on queue overflow (journal meta
+// hall.<name>.readings_dropped, written by the orchestrator); empty when there is no journal.
+std::string HallDroppedLine(const fs::path& dir) {
+  if (!fs::exists(dir / store::kSessionDbName)) return "";
+  std::string line = "Hall readings dropped (recorder queue full):";
+  try {
+    const store::SystemClock clock;
+    const auto journal = store::SessionStore::Open(dir, clock, /*read_only=*/true);
+    bool any = false;
+    for (const char* name : {"background", "actual"}) {
+      if (const auto v = journal->GetMeta(std::string("hall.") + name + ".readings_dropped")) {
+        line += std::string(any ? "," : "") + " " + name + " " + *v;
+        any = true;
+      }
+    }
+    if (!any) line += " not recorded in the journal";
+  } catch (const std::exception& e) {
+    line += std::string(" journal unreadable: ") + e.what();
+  }
+  return line + "\n";
 }
 
 }  // namespace
@@ -378,6 +401,7 @@ SessionReport BuildSessionReport(const fs::path& dir,
   } else {
     t << "  (skipped)\n";
   }
+  t << HallDroppedLine(dir);
   for (const auto& s : rep.skipped) t << "SKIPPED: " << s << "\n";
   rep.text = t.str();
 

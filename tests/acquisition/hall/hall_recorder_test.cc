@@ -3,10 +3,13 @@
 #include "acquisition/hall/hall_recorder.h"
 
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <condition_variable>
+#include <filesystem>
 #include <mutex>
 
+#include "acquisition/hall/hall_csv_writer.h"
 #include "mocks/mcu/mock_mcu.h"
 
 namespace msmcal::acquisition {
@@ -174,6 +177,59 @@ TEST(HallRecorder, SlowSinkNeverBlocksTheReaderAndOverflowIsCounted) {
   EXPECT_EQ(delivered, result.counts.readings_delivered);
 }
 
+// Disk full on hall/: the CSV writer's files are links to /dev/full, so the first write in the
+// sink thread throws ENOSPC. The recorder catches it (no std::terminate), stops the reader and
+// reports the error; nothing after the failure counts as delivered.
+TEST(HallRecorder, ASinkThatThrowsStopsTheRecordingAndIsReported) {
+  namespace fs = std::filesystem;
+  const fs::path dir = fs::path(::testing::TempDir()) / "hall_recorder_full";
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  fs::create_symlink("/dev/full", dir / "actual.csv");
+  fs::create_symlink("/dev/full", dir / "actual_clock.csv");
+  acquisition::HallCsvWriter writer(dir / "actual.csv");
+  FakeSensor sensor(1000000);  // would run for a long time: only the failure can end it early
+  HallRecorderOptions options;
+  options.control_streaming = false;
+  HallRecorder recorder(
+      sensor, [&](const HallBatch& b) { writer.Write(b); }, options);
+  recorder.Start();
+  const HallRecorderResult result = recorder.Wait();
+  EXPECT_EQ(result.end, RecorderEnd::kSinkFailed) << result.message;
+  EXPECT_NE(result.message.find("No space left on device"), std::string::npos) << result.message;
+  EXPECT_NE(result.message.find("actual.csv"), std::string::npos) << result.message;
+  EXPECT_EQ(recorder.SinkError().empty(), false);
+  EXPECT_EQ(result.counts.readings_delivered, 0u);
+  EXPECT_GE(result.counts.readings_dropped, 1u);
+  EXPECT_LT(result.counts.driver.readings, 1000000u);
+}
+
+// A sink call that never returns: Wait() is bounded and says so instead of blocking forever.
+TEST(HallRecorder, WaitGivesUpOnAHungSink) {
+  FakeSensor sensor(3);
+  HallRecorderOptions options;
+  options.control_streaming = false;
+  options.sink_timeout_ms = 200;  // failure bound, not a synchronisation
+  // The sink blocks on a pipe nobody writes to until the test ends; it owns its end of the pipe.
+  int fds[2];
+  ASSERT_EQ(pipe(fds), 0);
+  auto read_end = std::make_shared<int>(fds[0]);
+  HallRecorder recorder(
+      sensor,
+      [read_end](const HallBatch&) {
+        char c;
+        (void)!read(*read_end, &c, 1);
+      },
+      options);
+  recorder.Start();
+  const HallRecorderResult result = recorder.Wait();
+  EXPECT_EQ(result.end, RecorderEnd::kSinkHung) << result.message;
+  EXPECT_NE(result.message.find("sink_timeout_ms = 200"), std::string::npos) << result.message;
+  // Release the abandoned thread (it returns into the recorder's shared state and exits).
+  ASSERT_EQ(write(fds[1], "xxx", 3), 3);
+  close(fds[1]);
+}
+
 TEST(HallRecorderOptions, ValidateNamesTheField) {
   HallRecorderOptions o;
   o.queue_capacity = 0;
@@ -181,6 +237,9 @@ TEST(HallRecorderOptions, ValidateNamesTheField) {
   o = {};
   o.max_seconds = -1;
   EXPECT_NE(o.Validate().find("max_seconds"), std::string::npos);
+  o = {};
+  o.sink_timeout_ms = 0;
+  EXPECT_NE(o.Validate().find("sink_timeout_ms = 0"), std::string::npos);
 }
 
 }  // namespace

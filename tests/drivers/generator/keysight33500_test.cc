@@ -149,5 +149,22 @@ TEST_F(Keysight33500Test, ArbUploadLandsSampleExact) {
   EXPECT_THROW(g->ConfigureChannel(2, s), GeneratorError);
 }
 
+// An infinite limit never reaches the wire: the driver refuses it before connecting, so no
+// `SOUR1:VOLT 1000` is ever sent for the instrument to clip.
+TEST_F(Keysight33500Test, AnInfiniteLimitIsRefusedBeforeAnyCommand) {
+  Start("Keysight Technologies,33520B,MY2,4.0");
+  Keysight33500Options o = Options();
+  o.limits[0].max_vpp = kHighZ;
+  try {
+    OpenKeysight33500(o);
+    FAIL() << "an infinite limit must be refused";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("unit1.channels.1.limits.max_vpp = inf: must be finite"),
+              std::string::npos)
+        << e.what();
+  }
+  EXPECT_EQ(server_->ConnectionsAccepted(), 0u);
+}
+
 }  // namespace
 }  // namespace msmcal::gen

@@ -1,6 +1,8 @@
 #include "drivers/hall_mcu/hall_mcu_config.h"
 
+#include <fcntl.h>
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <cstdlib>
 #include <filesystem>
@@ -46,6 +48,34 @@ TEST(HallMcuConfig, ErrorsNameFileLineAndField) {
             "gain_sel <= 7");
   EXPECT_NE(ErrorOf("hall_mcu:\n  stall_timeout_ms: 0\n").find("stall_timeout_ms = 0"),
             std::string::npos);
+}
+
+}  // namespace
+}  // namespace msmcal::hall_mcu
+
+namespace msmcal::hall_mcu {
+namespace {
+
+// A pseudo-terminal stands for the MCU's tty. Every serial option is checked on its own: an
+// unsupported baud rate used to be overwritten by the success of the options after it.
+TEST(HallMcuSerial, AnOptionTheTtyRefusesIsReportedEvenIfLaterOnesSucceed) {
+  const int master = posix_openpt(O_RDWR | O_NOCTTY);
+  ASSERT_GE(master, 0);
+  ASSERT_EQ(grantpt(master), 0);
+  ASSERT_EQ(unlockpt(master), 0);
+  HallMcuOptions o;
+  o.device = ptsname(master);
+  o.baud_rate = 12345;  // not a termios rate
+  try {
+    OpenHallMcu(o);
+    ADD_FAILURE() << "expected the baud rate to be refused";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("baud_rate 12345"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find(o.device), std::string::npos) << e.what();
+  }
+  o.baud_rate = 921600;
+  EXPECT_NO_THROW(OpenHallMcu(o));
+  close(master);
 }
 
 }  // namespace

@@ -3,6 +3,9 @@
 #include "drivers/scpi/scpi_client.h"
 
 #include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <chrono>
 
 #include "drivers/scpi/scpi_text.h"
 #include "mocks/generator/mock_server.h"
@@ -131,6 +134,67 @@ TEST(ScpiClientConnectTest, RefusedConnectionIsTyped) {
     EXPECT_EQ(e.kind(), ErrorKind::kConnectFailed);
   }
   EXPECT_THROW(c.Query("*IDN?"), ScpiError);
+}
+
+// A host name is resolved by name (not only numeric addresses) and the instrument answers.
+TEST_F(ScpiClientTest, ConnectsByHostName) {
+  ScpiClientOptions o = Options();
+  o.host = "localhost";
+  ScpiClient c(o);
+  try {
+    c.Connect();
+  } catch (const ScpiError& e) {
+    GTEST_SKIP() << "localhost does not resolve to the mock's address here: " << e.what();
+  }
+  EXPECT_NE(c.Query("*IDN?").find(",335"), std::string::npos);
+}
+
+// Name resolution cannot be cancelled; it runs on its own thread and the connect timeout bounds
+// the wait. A lookup that never returns (blocked on a pipe nobody writes) gives up in time.
+TEST(ScpiClientConnectTest, ABlockedLookupIsBoundedByTheTimeout) {
+  int fds[2];
+  ASSERT_EQ(pipe(fds), 0);
+  const int read_end = fds[0];
+  const auto t0 = std::chrono::steady_clock::now();
+  const auto r = detail::CallWithin(
+      [read_end] {
+        char c;
+        (void)!read(read_end, &c, 1);
+        return std::vector<std::string>{"late"};
+      },
+      /*timeout_ms=*/100);
+  const auto waited = std::chrono::steady_clock::now() - t0;
+  EXPECT_FALSE(r.has_value());
+  EXPECT_GE(waited, std::chrono::milliseconds(100));
+  EXPECT_LT(waited, std::chrono::seconds(5));
+  ASSERT_EQ(write(fds[1], "x", 1), 1);  // lets the abandoned lookup finish
+  close(fds[1]);
+  // A lookup that finishes hands over its result, and what it throws reaches the caller.
+  EXPECT_EQ(detail::CallWithin(
+                [] {
+                  return std::vector<std::string>{"a", "b"};
+                },
+                5000),
+            (std::vector<std::string>{"a", "b"}));
+  EXPECT_THROW(
+      detail::CallWithin(
+          []() -> std::vector<std::string> { throw std::runtime_error("no such host"); }, 5000),
+      std::runtime_error);
+}
+
+TEST(ScpiClientConnectTest, AnUnknownHostIsAConnectFailure) {
+  ScpiClientOptions o;
+  o.host = "no-such-instrument.invalid";  // RFC 2606: never resolves
+  o.port = 5025;
+  o.connect_timeout_ms = 2000;
+  ScpiClient c(o);
+  try {
+    c.Connect();
+    FAIL();
+  } catch (const ScpiError& e) {
+    EXPECT_EQ(e.kind(), ErrorKind::kConnectFailed);
+    EXPECT_NE(std::string(e.what()).find("cannot resolve host"), std::string::npos) << e.what();
+  }
 }
 
 TEST(ScpiClientOptionsTest, ValidateNamesField) {

@@ -12,6 +12,7 @@
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <random>
+#include <regex>
 #include <sstream>
 
 #include "tests/testing/test_files.h"
@@ -69,6 +70,16 @@ class Doubles {
     }
   }
   double Positive() { return std::abs(Next()) + 1e-3; }
+  // A stressing value (as Next(), sign kept or folded) inside the range a session.yaml or
+  // camera.yaml field allows (`open_lo`: lo itself excluded).
+  double In(double lo, double hi, bool open_lo = false) {
+    for (int attempt = 0; attempt < 1000; ++attempt) {
+      double v = Next();
+      if (lo >= 0) v = std::abs(v);
+      if ((open_lo ? v > lo : v >= lo) && v <= hi) return v;
+    }
+    return 0.5 * (lo + hi);
+  }
   int Int(int lo, int hi) { return std::uniform_int_distribution<int>(lo, hi)(rng_); }
   int64_t Int64() { return std::uniform_int_distribution<int64_t>(INT64_MIN, INT64_MAX)(rng_); }
 
@@ -120,21 +131,23 @@ dataset::Recording RandomRecording(uint64_t seed) {
   dataset::Recording r;
   r.camera.width = 4096;
   r.camera.height = 3000;
-  r.camera.fx = d.Positive();
-  r.camera.fy = d.Positive();
-  r.camera.cx = d.Next();
-  r.camera.cy = d.Next();
-  for (double& k : r.camera.distortion) k = d.Next();
-  r.world_board = {9, 6, d.Next()};
-  r.sliding_board = {7, 4, d.Next()};
+  // Values inside the allowed ranges (interchange_io.cc), still stressing the text form.
+  r.camera.fx = d.In(0, 1e7, /*open_lo=*/true);
+  r.camera.fy = d.In(0, 1e7, /*open_lo=*/true);
+  r.camera.cx = d.In(-4096, 8192);
+  r.camera.cy = d.In(-3000, 6000);
+  for (size_t i = 0; i < r.camera.distortion.size(); ++i)
+    r.camera.distortion[i] = i == 2 || i == 3 ? d.In(-1, 1) : d.In(-1000, 1000);
+  r.world_board = {9, 6, d.In(0, 1000, /*open_lo=*/true)};
+  r.sliding_board = {7, 4, d.In(0, 1000, /*open_lo=*/true)};
   r.beams = {{1, dataset::BeamRole::kEstimate},
              {2, dataset::BeamRole::kEstimate},
              {7, dataset::BeamRole::kValidate}};
-  r.drive.fast = {d.Next(), d.Next(), d.Next()};
-  r.drive.slow = {d.Next(), d.Next(), d.Next()};
-  r.drive.pattern_period_s = d.Next();
-  r.clock_frequency_hz = d.Next();
-  for (int j = 0; j < 12; ++j) r.triggers.push_back({j, d.Next()});
+  for (dataset::DriveAxis* a : {&r.drive.fast, &r.drive.slow})
+    *a = {d.In(0, 30e6, /*open_lo=*/true), d.In(0, 20), d.In(-360, 360)};
+  r.drive.pattern_period_s = d.In(0, 1e4, /*open_lo=*/true);
+  r.clock_frequency_hz = d.In(0, 30e6, /*open_lo=*/true);
+  for (int j = 0; j < 12; ++j) r.triggers.push_back({j, d.In(0, r.drive.pattern_period_s)});
   char name[32];
   for (int i = 0; i < 5; ++i) {
     std::snprintf(name, sizeof(name), "step1/%04d.png", i);
@@ -566,11 +579,78 @@ TEST_F(InterchangeErrorTest, WriteRefusesInconsistentRecording) {
   EXPECT_FALSE(fs::exists(dir_ / "bad/session.yaml"));
 }
 
+// Every value has a range; an error names the file, the line, the field, the value and the
+// allowed range (issue 17: these used to end in std::bad_alloc, a misleading beam error after
+// 30 s, or a silently different result).
+TEST_F(InterchangeErrorTest, ValuesOutsideTheirRangeAreRefusedAtTheirLine) {
+  const std::string session = Slurp(dir_ / "session.yaml");
+  const std::string camera = Slurp(dir_ / "camera.yaml");
+  struct Case {
+    std::string file, pattern, replacement, line_needle, message;
+  };
+  const std::vector<Case> cases = {
+      {"session.yaml", R"(inner_corners: \[9, 6\])", "inner_corners: [2e9, 2e9]", "world:",
+       "field 'boards.world.inner_corners[0]': value 2000000000 outside the allowed range "
+       "[2, 1000]"},
+      {"session.yaml", R"(inner_corners: \[7, 4\])", "inner_corners: [7, 1]", "sliding:",
+       "field 'boards.sliding.inner_corners[1]': value 1 outside the allowed range [2, 1000]"},
+      {"session.yaml", R"(world: \{inner_corners: \[9, 6\], square_mm: [^}]*\})",
+       "world: {inner_corners: [9, 6], square_mm: 0}",
+       "world:", "field 'boards.world.square_mm': value 0 outside the allowed range (0, 1000]"},
+      {"session.yaml", R"(pose: 1,)", "pose: -5,", "pose: -5",
+       "field 'step1.frames[2].pose': value -5 outside the allowed range [0, 1000000]"},
+      {"session.yaml", R"(\{id: 7,)", "{id: -7,", "id: -7",
+       "field 'beams[2].id': value -7 outside the allowed range [0, 1000000]"},
+      {"session.yaml", R"(\{j: 3, t_s: [^}]*\})", "{j: 3, t_s: -1}", "j: 3,",
+       "field 'triggers[3].t_s': value -1 outside the allowed range [0, "},
+      {"session.yaml", R"(pattern_period_s: .*)", "pattern_period_s: 0", "pattern_period_s",
+       "field 'drive.pattern_period_s': value 0 outside the allowed range (0, 10000]"},
+      {"session.yaml", R"(fast: \{frequency_hz: [^,]*,)", "fast: {frequency_hz: -1230,", "fast:",
+       "field 'drive.fast.frequency_hz': value -1230 outside the allowed range (0, 3.0e+07]"},
+      {"session.yaml", R"(amplitude_vpp: [^,]*,)", "amplitude_vpp: 1e6,", "amplitude_vpp: 1e6",
+       "field 'drive.fast.amplitude_vpp': value 1.0e+06 outside the allowed range [0, 20]"},
+      {"camera.yaml", R"(image_size: .*)", "image_size: [0, 3000]", "image_size",
+       "field 'image_size[0]': value 0 outside the allowed range [1, 100000]"},
+      {"camera.yaml", R"(K: \[\[[^,]*,)", "K: [[-5,",
+       "K:", "field 'K[0][0]': value -5 outside the allowed range (0, 1.0e+07]"},
+      {"camera.yaml", R"(distortion: \[([^,]*), ([^,]*), [^,]*,)", "distortion: [$1, $2, 3,",
+       "distortion", "field 'distortion[2]': value 3 outside the allowed range [-1, 1]"},
+  };
+  for (const Case& c : cases) {
+    Spit(dir_ / "session.yaml", session);
+    Spit(dir_ / "camera.yaml", camera);
+    const std::string text = Slurp(dir_ / c.file);
+    const std::string edited = std::regex_replace(text, std::regex(c.pattern), c.replacement,
+                                                  std::regex_constants::format_first_only);
+    ASSERT_NE(edited, text) << c.pattern;
+    Spit(dir_ / c.file, edited);
+    const int line = LineOf(c.file, c.line_needle);
+    EXPECT_THAT(ReadError(), HasSubstr(c.file + ":" + std::to_string(line) + ": " + c.message))
+        << c.pattern;
+  }
+}
+
+// `msmcal solve` reads images through interchange::ImageProblem, the check `interchange check`
+// makes: a wrong size or pixel type is named, not measured.
+TEST(InterchangeImagesTest, ImageProblemChecksSizeAndType) {
+  geometry::CameraModel cam;
+  cam.width = 6;
+  cam.height = 4;
+  EXPECT_EQ(ImageProblem(cv::Mat(4, 6, CV_8UC1, cv::Scalar(0)), cam), "");
+  EXPECT_EQ(ImageProblem(cv::Mat(4, 6, CV_16UC3, cv::Scalar(0)), cam), "");
+  EXPECT_EQ(ImageProblem(cv::Mat(4, 5, CV_8UC1, cv::Scalar(0)), cam),
+            "image is 5x4 but camera.yaml image_size is [6, 4]");
+  EXPECT_THAT(ImageProblem(cv::Mat(4, 6, CV_32FC1, cv::Scalar(0)), cam),
+              HasSubstr("expected 8- or 16-bit mono or BGR"));
+}
+
 TEST(InterchangeImagesTest, CheckImageFilesDecodesEveryImage) {
   TempDir tmp;
   dataset::Recording r = RandomRecording(2);
   r.camera.width = 6;
   r.camera.height = 4;
+  r.camera.cx = 3;  // inside the allowed range for a 6x4 image
+  r.camera.cy = 2;
   WriteImages(tmp.path(), r);
   WriteRecording(tmp.path(), r);
   CheckImageFiles(tmp.path(), ReadRecording(tmp.path()));

@@ -13,6 +13,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <sstream>
 
+#include "acquisition/hall/hall_csv_writer.h"
 #include "mocks/generator/mock_server.h"
 #include "mocks/rig/truth_io.h"
 #include "processing/solver/pipeline.h"
@@ -20,6 +21,7 @@
 #include "sessions/orchestrator/demo_rig.h"
 #include "sessions/orchestrator/quality_gate.h"
 #include "sessions/orchestrator/report.h"
+#include "sessions/store/session_store.h"
 #include "tests/testing/tiny_sim.h"
 
 namespace msmcal::orchestrator {
@@ -176,6 +178,17 @@ TEST(Orchestrator, RunsACompleteSessionThroughTheMocksAndTheSolverRecoversTruth)
   const std::string log = ReadText(dir / "session_log.txt");
   EXPECT_NE(log.find("rig check passed"), std::string::npos);
   EXPECT_NE(log.find("safe state: generator outputs off (confirmed)"), std::string::npos);
+  // Hall readings the recorder dropped: in the log, the journal and the report.
+  EXPECT_NE(log.find(" 0 dropped (recorder queue full) ("), std::string::npos) << log;
+  {
+    const store::SystemClock clock;
+    const auto journal = store::SessionStore::Open(dir, clock, /*read_only=*/true);
+    EXPECT_EQ(journal->GetMeta("hall.background.readings_dropped"), "0");
+    EXPECT_EQ(journal->GetMeta("hall.actual.readings_dropped"), "0");
+  }
+  EXPECT_NE(report.text.find("Hall readings dropped (recorder queue full): background 0, actual 0"),
+            std::string::npos)
+      << report.text;
 }
 
 TEST(Orchestrator, ErrorMidRunSwitchesOutputsOffAndIsLogged) {
@@ -203,6 +216,37 @@ TEST(Orchestrator, ErrorMidRunSwitchesOutputsOffAndIsLogged) {
   EXPECT_NE(log.find("ERROR: injected failure"), std::string::npos) << log;
   EXPECT_NE(log.find("safe state: generator outputs off"), std::string::npos) << log;
   EXPECT_FALSE(fs::exists(dir / "session.yaml")) << "an aborted session is not complete";
+}
+
+// Disk full on hall/ during the background recording: the CSV writer's error, thrown on the
+// recorder's sink thread, ends the session in the safe state with the error in the log (it
+// used to be std::terminate with the outputs on).
+TEST(Orchestrator, AHallSinkFailureEndsInTheSafeStateWithTheError) {
+  DemoRigOptions ro;
+  ro.sim = TinySim();
+  DemoRig rig(ro);
+  const fs::path dir = FreshDir("hall_full");
+  const fs::path full = FreshDir("hall_full_dev");
+  fs::create_directories(full);
+  fs::create_symlink("/dev/full", full / "hall.csv");
+  fs::create_symlink("/dev/full", full / "hall_clock.csv");
+  auto disk = std::make_shared<acquisition::HallCsvWriter>(full / "hall.csv");
+  OrchestratorOptions options = rig.MakeOrchestratorOptions(dir);
+  options.hall_sink_hook = [disk](const hall_mcu::HallBatch& b) { disk->Write(b); };
+  try {
+    RunSession(options, rig.Plan(), rig.world(), nullptr);
+    FAIL() << "expected the Hall sink failure";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("No space left on device"), std::string::npos) << e.what();
+  }
+  EXPECT_FALSE(rig.generators().unit(1).AnyOutputOn());
+  EXPECT_FALSE(rig.generators().unit(2).AnyOutputOn());
+  const std::string log = ReadText(dir / "session_log.txt");
+  EXPECT_NE(log.find("ERROR: background.csv: Hall recording ended: sink_failed the sink failed: "
+                     "write to "),
+            std::string::npos)
+      << log;
+  EXPECT_NE(log.find("safe state: generator outputs off (confirmed)"), std::string::npos) << log;
 }
 
 TEST(Orchestrator, SessionSignalsPlayThePlansTriggerTableAndRefuseAnotherPeriod) {

@@ -148,7 +148,20 @@ TEST(ReplayConfig, DemoSetupFollowsTheSimulatorOptions) {
   EXPECT_DOUBLE_EQ(s.generators.signals.fast.amplitude_vpp, 1.5);
   EXPECT_DOUBLE_EQ(s.generators.signals.fast.frequency_hz, o.mirror.fast.frequency_hz);
   EXPECT_DOUBLE_EQ(s.generators.signals.slow.frequency_hz, o.mirror.slow.frequency_hz);
-  EXPECT_DOUBLE_EQ(s.generators.unit1.limits[0].max_vpp, 3.0);
+  // Limits come from the demo rig file, never from the request (issue 17): a drive far beyond
+  // them is refused, not accommodated.
+  EXPECT_DOUBLE_EQ(s.generators.unit1.limits[0].max_vpp, 4.0);
+  auto validated = [](gen::RigGeneratorConfig g) {  // on some ports (a replay has none)
+    g.unit1.link.port = g.unit2.link.port = 5025;
+    return g.Validate();
+  };
+  EXPECT_EQ(validated(s.generators), "");
+  o.mirror.fast.amplitude_vpp = 1000;
+  const RigSetup big = SetupFromSourceRun({"demo", sim::SimOptionsToYaml(o)});
+  EXPECT_DOUBLE_EQ(big.generators.unit1.limits[0].max_vpp, 4.0);
+  EXPECT_EQ(validated(big.generators),
+            "generators.generator1.ch1 (fast_coil): amplitude_vpp = 1000 outside the limit [0, 4] "
+            "Vpp");
   EXPECT_THROW(SetupFromSourceRun({"guided", ""}), std::runtime_error);
 }
 
