@@ -1,0 +1,413 @@
+#include "processing/solver/stages/measure.h"
+
+#include <Eigen/Dense>
+#include <Eigen/Eigenvalues>
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <exception>
+#include <functional>
+#include <map>
+#include <opencv2/core/utility.hpp>
+#include <sstream>
+#include <thread>
+
+namespace msmcal::solver {
+namespace {
+
+// Board (c, r) -> image homography of a detection, in squares (identity if it cannot be fitted).
+cv::Matx33d BoardHomographyOrIdentity(const vision::CheckerboardDetection& board,
+                                      vision::BoardSize size) {
+  const cv::Mat h = vision::BoardHomography(board, size);
+  return h.empty() ? cv::Matx33d::eye() : cv::Matx33d(h);
+}
+
+// Elongation (ratio of principal std devs) of a blob's shape mapped into the board's plane: a
+// laser spot is round there (or elongated by its incidence), whatever the plane's tilt to the
+// camera; board structure (top-hat residue of square corners and edges) is not.
+double SurfaceElongation(const vision::Dot& d, const cv::Matx33d& h) {
+  const cv::Matx33d hi = h.inv();
+  const cv::Vec3d u = hi * cv::Vec3d(d.centroid_px.x(), d.centroid_px.y(), 1.0);
+  if (std::abs(u[2]) < 1e-12) return 1e9;
+  const double bx = u[0] / u[2], by = u[1] / u[2];
+  const double w = h(2, 0) * bx + h(2, 1) * by + h(2, 2);
+  const double x = (h(0, 0) * bx + h(0, 1) * by + h(0, 2)) / w;
+  const double y = (h(1, 0) * bx + h(1, 1) * by + h(1, 2)) / w;
+  Eigen::Matrix2d j;
+  j << (h(0, 0) - x * h(2, 0)) / w, (h(0, 1) - x * h(2, 1)) / w, (h(1, 0) - y * h(2, 0)) / w,
+      (h(1, 1) - y * h(2, 1)) / w;
+  if (std::abs(j.determinant()) < 1e-12) return 1e9;
+  const Eigen::Matrix2d ji = j.inverse();
+  const Eigen::Matrix2d surf = ji * d.scatter_px2 * ji.transpose();
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> es(0.5 * (surf + surf.transpose()));
+  return std::sqrt(es.eigenvalues()(1) / std::max(es.eigenvalues()(0), 1e-300));
+}
+
+// images before the solve, `threads` images at a time; each image is measured on one thread
+// and stored by its index, so the outcome does not depend on the scheduling.
+
+// Turns OpenCV's own parallel loops off while alive (restores the previous setting): their
+// results depend on the number of CPUs and on the load (stripe boundaries and completion
+// order), and a solve must give the same digits on every run.
+class OpenCvSerial {
+ public:
+  OpenCvSerial() : previous_(cv::getNumThreads()) { cv::setNumThreads(0); }
+  ~OpenCvSerial() { cv::setNumThreads(previous_); }
+  OpenCvSerial(const OpenCvSerial&) = delete;
+  OpenCvSerial& operator=(const OpenCvSerial&) = delete;
+
+ private:
+  int previous_;
+};
+
+// Runs fn(0) .. fn(count - 1), `threads` at a time (each index on one thread); rethrows the
+// exception of the first failing index, so the error does not depend on the scheduling.
+void ForEachImage(size_t count, int threads, const std::function<void(size_t)>& fn) {
+  std::vector<std::exception_ptr> errors(count);
+  std::atomic<size_t> next{0};
+  auto work = [&] {
+    for (size_t i = next++; i < count; i = next++) {
+      try {
+        fn(i);
+      } catch (...) {
+        errors[i] = std::current_exception();
+      }
+    }
+  };
+  const size_t n = std::min<size_t>(static_cast<size_t>(threads), std::max<size_t>(1, count));
+  std::vector<std::thread> pool;
+  for (size_t t = 1; t < n; ++t) pool.emplace_back(work);
+  work();
+  for (auto& t : pool) t.join();
+  for (const auto& e : errors)
+    if (e) std::rethrow_exception(e);
+}
+
+// The dots of a measured image that lie on the plane of the board that carries them (step 1:
+// the sliding board, boards[1], never on the world board; step 2: the world board, boards[0]).
+std::vector<vision::Dot> DotsOnHostPlane(const std::vector<vision::Dot>& dots,
+                                         const ImageMeasurement& m,
+                                         const std::vector<vision::BoardSize>& sizes,
+                                         const PipelineOptions& o, RegionRejections* rej) {
+  if (sizes.size() == 2) {
+    return DotsOnBoard(dots, *m.boards[1], sizes[1], o.step1_dot_margin_squares, o,
+                       m.boards[0] ? vision::SquaresOutline(*m.boards[0], sizes[0], 0.5)
+                                   : std::vector<Eigen::Vector2d>{},
+                       rej);
+  }
+  return DotsOnBoard(dots, *m.boards[0], sizes[0], o.step2_dot_margin_squares, o, {}, rej);
+}
+
+// `expected[i]`: the dots image i should show (0: not checked). An image whose first pass finds
+// fewer on its board's plane is measured again with settings from its own data
+// (AdaptiveDotOptions); the second pass is kept if it finds more.
+std::vector<ImageMeasurement> MeasureImages(
+    const std::vector<std::string>& files,
+    const std::vector<std::vector<vision::BoardSize>>& boards, const ImageLoader& load,
+    const PipelineOptions& o, const std::vector<int>& expected) {
+  std::vector<ImageMeasurement> out(files.size());
+  ForEachImage(files.size(), o.image_threads, [&](size_t i) {
+    const cv::Mat img = load(files[i]);
+    if (img.empty()) throw SolveError(files[i] + ": cannot read the image");
+    out[i] = MeasureFrame(img, boards[i], expected[i], o);
+  });
+  return out;
+}
+
+// Refits every dot over a background measured in the other images of its static group (same
+// camera and board placement: all of step 2; step 1 image by sliding pose), where its pixels
+// are dot-free (vision/dots.h). The images are read a second time, `threads` at a time; the
+// background sums are added in image order, so the result does not depend on the scheduling.
+// Dots without a dot-free view of every window pixel keep their first measurement.
+void RefineDotsOnBackgrounds(const std::vector<std::vector<size_t>>& groups,
+                             const std::vector<std::string>& files, const ImageLoader& load,
+                             const vision::DotOptions& dot_options, int threads,
+                             std::vector<ImageMeasurement>* measured) {
+  struct Window {
+    size_t image, dot;
+  };
+  std::vector<std::vector<Window>> windows(groups.size());
+  std::vector<int> group_of(files.size(), -1);
+  for (size_t g = 0; g < groups.size(); ++g) {
+    if (groups[g].size() < 2) continue;
+    for (size_t i : groups[g]) {
+      group_of[i] = static_cast<int>(g);
+      const auto& m = (*measured)[i];
+      // Only images whose board was found take part (their dots are the ones used, and only
+      // they are read again below).
+      if (m.boards.empty() || !m.boards.back()) continue;
+      for (size_t k = 0; k < m.dots.size(); ++k) windows[g].push_back({i, k});
+    }
+  }
+  // Per image: its contribution to its group's windows, and its own dots' signal patches.
+  std::vector<std::vector<vision::BackgroundPatch>> contribution(files.size());
+  std::vector<std::vector<vision::DotSignalPatch>> own(files.size());
+  // A dot's window needs its image's size; a group whose images differ in size is skipped.
+  std::vector<cv::Size> sizes(files.size());
+  ForEachImage(files.size(), threads, [&](size_t i) {
+    if (group_of[i] < 0 || (*measured)[i].boards.empty() || !(*measured)[i].boards.back()) return;
+    const cv::Mat img = load(files[i]);
+    if (img.empty()) throw SolveError(files[i] + ": cannot read the image");
+    sizes[i] = img.size();
+    std::vector<cv::Rect> rects;
+    for (const Window& w : windows[group_of[i]])
+      rects.push_back(
+          vision::DotFitWindow((*measured)[w.image].dots[w.dot], img.size(), dot_options));
+    contribution[i] = vision::BackgroundContribution(img, (*measured)[i].dots, rects, dot_options);
+    for (const auto& d : (*measured)[i].dots)
+      own[i].push_back(
+          vision::ReadDotSignal(img, vision::DotFitWindow(d, img.size(), dot_options)));
+  });
+  for (size_t g = 0; g < groups.size(); ++g) {
+    if (windows[g].empty()) continue;
+    bool same_size = true;
+    cv::Size size;
+    for (size_t i : groups[g]) {
+      if (contribution[i].empty()) continue;
+      if (size.empty()) size = sizes[i];
+      same_size = same_size && sizes[i] == size;
+    }
+    if (!same_size) continue;
+    for (size_t w = 0; w < windows[g].size(); ++w) {
+      vision::BackgroundPatch bg;
+      for (size_t i : groups[g])
+        if (!contribution[i].empty()) bg.Add(contribution[i][w]);
+      const Window& win = windows[g][w];
+      vision::RefineDotOnBackground(own[win.image][win.dot], bg, dot_options,
+                                    &(*measured)[win.image].dots[win.dot]);
+    }
+  }
+}
+
+}  // namespace
+
+// The frame's dots on its board's plane, and the blobs refused there, into its detection row.
+void RecordDots(const std::vector<vision::Dot>& on_plane, const std::vector<vision::Dot>& all,
+                const RegionRejections& region, FrameDetection* fd) {
+  fd->dots_found = static_cast<int>(on_plane.size());
+  fd->off_plane = region.off_plane;
+  fd->junction = region.junction;
+  fd->surface_elongated = region.surface_elongated;
+  for (const auto& d : on_plane) fd->dots_px.push_back(d.px);
+  for (const auto& d : all)
+    if (std::none_of(on_plane.begin(), on_plane.end(),
+                     [&](const vision::Dot& k) { return k.px == d.px; }))
+      fd->refused_px.push_back(d.px);
+}
+
+// Laser dots land on the board's plane: the blobs inside the board's squares area grown by
+// `margin_squares` (the plate or screen around the printed pattern), not inside `exclude` (the
+// other board's outline, grown by half a square), round in the board's plane.
+std::vector<vision::Dot> DotsOnBoard(const std::vector<vision::Dot>& dots,
+                                     const vision::CheckerboardDetection& board,
+                                     vision::BoardSize size, double margin_squares,
+                                     const PipelineOptions& o,
+                                     const std::vector<Eigen::Vector2d>& exclude,
+                                     RegionRejections* rej) {
+  const auto outline = vision::SquaresOutline(board, size, margin_squares);
+  // The host board's own printed area wins over the other board's outline (the sliding plate
+  // may hide part of the world board in the image).
+  const auto own_area = vision::SquaresOutline(board, size, 0.5);
+  const cv::Matx33d h = BoardHomographyOrIdentity(board, size);
+  const double junction_px = o.junction_exclusion_squares * board.square_px;
+  std::vector<vision::Dot> out;
+  for (const auto& d : dots) {
+    if (!vision::InsideOutline(outline, d.px) ||
+        (!exclude.empty() && vision::InsideOutline(exclude, d.px) &&
+         !vision::InsideOutline(own_area, d.px))) {
+      ++rej->off_plane;
+      continue;
+    }
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> es(d.scatter_px2);
+    const double image_elongation =
+        std::sqrt(es.eigenvalues()(1) / std::max(es.eigenvalues()(0), 1e-12));
+    if (image_elongation > o.junction_elongation) {
+      bool at_corner = false;
+      for (const auto& c : board.corners_px)
+        at_corner = at_corner || (c - d.px).norm() < junction_px;
+      if (at_corner) {
+        ++rej->junction;
+        continue;
+      }
+    }
+    if (SurfaceElongation(d, h) > o.max_surface_elongation) {
+      ++rej->surface_elongated;
+      continue;
+    }
+    out.push_back(d);
+  }
+  return out;
+}
+
+// The corners of `board` that no laser dot of the frame disturbs (their average over a view
+// leaves the others out).
+std::vector<char> CornersClearOfDots(const vision::CheckerboardDetection& board,
+                                     const std::vector<vision::Dot>& dots) {
+  std::vector<cv::Rect> boxes;
+  for (const auto& d : dots) boxes.push_back(d.blob_box);
+  return vision::CornersClearOfSpots(board, boxes);
+}
+
+ImageMeasurement MeasureImage(const cv::Mat& img, const std::vector<vision::BoardSize>& boards,
+                              const vision::DotOptions& dot_options,
+                              const vision::CheckerboardOptions& board_options) {
+  // OpenCV's detectors draw from the calling thread's cv::theRNG(): reseed it per image so
+  // that an image's measurement does not depend on which images its thread measured before.
+  cv::theRNG() = cv::RNG(0x6d736d63616cULL);
+  ImageMeasurement m;
+  m.image_size = img.size();
+  m.channels = img.channels();
+  m.depth_bits = img.depth() == CV_16U ? 16 : 8;
+  if (boards.size() == 1) {
+    m.board_attempts.resize(1);
+    m.boards = {
+        vision::DetectCheckerboard(img, boards[0], board_options, cv::Mat(), &m.board_attempts[0])};
+  } else {
+    m.boards = vision::DetectCheckerboards(img, boards, board_options, &m.board_attempts);
+  }
+  m.dots = vision::DetectDots(img, dot_options, &m.dot_rejections);
+  return m;
+}
+
+ImageMeasurement MeasureFrame(const cv::Mat& img, const std::vector<vision::BoardSize>& sizes,
+                              int expected, const PipelineOptions& o) {
+  ImageMeasurement m = MeasureImage(img, sizes, o.dots, o.boards);
+  const auto& host = sizes.size() == 2 ? m.boards[1] : m.boards[0];
+  if (!host) return m;
+  RegionRejections rej;
+  const size_t first = DotsOnHostPlane(m.dots, m, sizes, o, &rej).size();
+  m.dots_on_plane = first;
+  if (!o.adaptive_dots || expected <= 0 || first >= static_cast<size_t>(expected)) return m;
+  const vision::DotOptions adaptive = vision::AdaptiveDotOptions(img, host->square_px, o.dots);
+  vision::DotRejections rej2;
+  auto dots2 = vision::DetectDots(img, adaptive, &rej2);
+  // A low threshold also passes noise, compression and board residue: the laser's spots in
+  // one frame are alike, so blobs far fainter than the frame's brightest on the plane go.
+  RegionRejections rej3;
+  double brightest = 0;
+  for (const auto& d : DotsOnHostPlane(dots2, m, sizes, o, &rej3))
+    brightest = std::max(brightest, d.peak);
+  // A clipped spot's peak is capped by the headroom over its background (a light square,
+  // gamma): it is compared with the smaller of the brightest and that headroom.
+  const double full = img.depth() == CV_16U ? 65535.0 : 255.0;
+  const size_t before_peak = dots2.size();
+  dots2.erase(
+      std::remove_if(dots2.begin(), dots2.end(),
+                     [&](const vision::Dot& d) {
+                       // Only a clipped spot is excused by its headroom.
+                       const bool clipped = d.peak_level >= std::min(d.plateau_level, 0.98 * full);
+                       const double headroom = full - (d.peak_level - d.peak);
+                       const double reference = clipped ? std::min(brightest, headroom) : brightest;
+                       return d.peak < o.adaptive_min_relative_peak * reference;
+                     }),
+      dots2.end());
+  rej2.too_faint = static_cast<int>(before_peak - dots2.size());
+  // The second pass adds to the first: its dots that no first-pass dot's blob already covers
+  // (a larger kernel can merge or lose a spot the first pass had).
+  for (const auto& d : m.dots)
+    if (std::none_of(dots2.begin(), dots2.end(), [&](const vision::Dot& e) {
+          return (e.px - d.px).norm() < 0.5 * std::max(d.blob_box.width, d.blob_box.height) + 2;
+        }))
+      dots2.push_back(d);
+  std::sort(dots2.begin(), dots2.end(), [](const vision::Dot& a, const vision::Dot& b) {
+    return std::make_pair(a.blob_box.y, a.blob_box.x) < std::make_pair(b.blob_box.y, b.blob_box.x);
+  });
+  rej3 = {};
+  const size_t second = DotsOnHostPlane(dots2, m, sizes, o, &rej3).size();
+
+  m.second_pass_on_plane = static_cast<int>(second);
+  if (second <= first || second > static_cast<size_t>(expected + o.max_surplus_dots)) return m;
+  m.dots = std::move(dots2);
+  m.dot_rejections = rej2;
+  m.adaptive_dots = true;
+  std::ostringstream what;
+  what << "dots from the image's own scale: threshold " << adaptive.threshold_fraction
+       << " of full scale, top-hat " << adaptive.background_kernel_px << " px, min "
+       << adaptive.min_pixels << " px (" << first << " -> " << second << " on the plane)";
+  m.dot_settings = what.str();
+  m.dots_on_plane = second;
+  return m;
+}
+
+RecordingMeasurement MeasureRecording(const dataset::Recording& rec, const ImageLoader& load,
+                                      const PipelineOptions& o) {
+  using dataset::Step2Kind;
+  RecordingMeasurement out;
+  const vision::BoardSize world_size{rec.world_board.cols, rec.world_board.rows};
+  const vision::BoardSize sliding_size{rec.sliding_board.cols, rec.sliding_board.rows};
+  // Boards and dots of every image first (parallel over images, OpenCV serial inside).
+  std::vector<ImageMeasurement> measured;
+  {
+    const OpenCvSerial serial;
+    std::vector<std::string> files;
+    std::vector<std::vector<vision::BoardSize>> asks;
+    for (const auto& f : rec.step1) {
+      files.push_back(f.file);
+      asks.push_back({world_size, sliding_size});
+    }
+    for (const auto& f : rec.step2) {
+      files.push_back(f.file);
+      asks.push_back({world_size});
+    }
+    try {
+      std::vector<int> expected;
+      for (const auto& f : rec.step1) expected.push_back(static_cast<int>(f.beams.size()));
+      for (const auto& f : rec.step2)
+        expected.push_back(static_cast<int>(
+            (f.kind == Step2Kind::kNeutral ? 1 : f.triggers.size()) * f.beams.size()));
+      measured = MeasureImages(files, asks, load, o, expected);
+      if (o.dots.centre == vision::DotCentre::kGaussianFit) {
+        std::vector<std::vector<size_t>> static_groups;
+        std::map<int, size_t> group_of_pose;
+        for (size_t i = 0; i < rec.step1.size(); ++i) {
+          auto [it, added] = group_of_pose.emplace(rec.step1[i].pose, static_groups.size());
+          if (added) static_groups.emplace_back();
+          static_groups[it->second].push_back(i);
+        }
+        static_groups.emplace_back();
+        for (size_t i = 0; i < rec.step2.size(); ++i)
+          static_groups.back().push_back(rec.step1.size() + i);
+        RefineDotsOnBackgrounds(static_groups, files, load, o.dots, o.image_threads, &measured);
+        int on_background = 0, top_hat = 0, centroid = 0;
+        for (const auto& m : measured)
+          for (const auto& d : m.dots)
+            (d.on_background ? on_background : d.fitted ? top_hat : centroid)++;
+        out.log.notes.push_back("dots: " + std::to_string(on_background) +
+                                " fitted over a background measured in other images, " +
+                                std::to_string(top_hat) +
+                                " over the top-hat (no dot-free view of their window), " +
+                                std::to_string(centroid) + " weighted centroids (fit failed)");
+      }
+    } catch (const SolveError& e) {
+      out.log.error = e.what();
+      return out;
+    }
+  }
+  for (size_t i = 0; i < measured.size(); ++i) {
+    const bool first = i < rec.step1.size();
+    FrameDetection d;
+    d.file = first ? rec.step1[i].file : rec.step2[i - rec.step1.size()].file;
+    d.step = first ? "step1" : "step2";
+    const std::vector<std::string> names =
+        first ? std::vector<std::string>{"world", "sliding"} : std::vector<std::string>{"world"};
+    for (size_t b = 0; b < measured[i].boards.size(); ++b) {
+      FrameDetection::Board board;
+      board.name = names[b];
+      if (const auto& found = measured[i].boards[b]) {
+        board.found = true;
+        board.method = vision::ToString(found->method);
+        board.square_px = found->square_px;
+        board.corners_px = found->corners_px;
+      }
+      d.boards.push_back(board);
+    }
+    d.blobs = static_cast<int>(measured[i].dots.size());
+    if (measured[i].adaptive_dots) d.note = measured[i].dot_settings;
+    d.rejected = measured[i].dot_rejections;
+    out.detections.push_back(std::move(d));
+  }
+  out.images = std::move(measured);
+  return out;
+}
+
+}  // namespace msmcal::solver

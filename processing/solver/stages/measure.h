@@ -1,0 +1,86 @@
+#pragma once
+// Stage: image measurement (MSM paper Sec. V-A, "board and dot detection"). Every image of the
+// recording is measured once, before anything is decided: the boards it shows and every
+// dot-like blob, with what each detector tried and why blobs were refused. Then (Gaussian-fit
+// centres) each dot is refitted over a background measured in the other images of its static
+// group. Also the plane-level dot selection the later stages share (DotsOnBoard).
+
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "processing/dataset/recording.h"
+#include "processing/solver/solve_types.h"
+#include "processing/solver/stages/common.h"
+#include "processing/vision/checkerboard.h"
+#include "processing/vision/dots.h"
+
+namespace msmcal::solver {
+
+// Stage: image measurement. The boards asked for (in order; step 1: world, sliding; step 2:
+// world) and every dot-like blob of one image, with what each detector tried and why blobs were
+// refused. Deterministic (reseeds OpenCV's RNG of the calling thread).
+struct ImageMeasurement {
+  std::vector<std::optional<vision::CheckerboardDetection>> boards;
+  std::vector<std::vector<vision::BoardAttempt>> board_attempts;  // per board asked for
+  std::vector<vision::Dot> dots;
+  vision::DotRejections dot_rejections;
+  bool adaptive_dots = false;     // dots from the second, data-driven pass (AdaptiveDotOptions)
+  std::string dot_settings;       // that pass's settings, for the frame's note
+  size_t dots_on_plane = 0;       // of `dots`, on the plane of the board that carries them
+  int second_pass_on_plane = -1;  // what the second pass found there (-1: not run)
+  cv::Size image_size;
+  int channels = 1, depth_bits = 8;
+};
+ImageMeasurement MeasureImage(const cv::Mat& image, const std::vector<vision::BoardSize>& boards,
+                              const vision::DotOptions& dot_options,
+                              const vision::CheckerboardOptions& board_options);
+// The same, then (PipelineOptions::adaptive_dots) a second, data-driven dot pass where the first
+// finds fewer than `expected_dots` on the plane of the board that carries them (step 1: the
+// sliding board, boards[1]; step 2: the world board).
+ImageMeasurement MeasureFrame(const cv::Mat& image, const std::vector<vision::BoardSize>& boards,
+                              int expected_dots, const PipelineOptions& options);
+
+// Why blobs of a frame were not taken as its laser dots (results/detections.csv).
+struct RegionRejections {
+  int off_plane = 0;          // outside the board's plane (beyond the margin, on the other board)
+  int junction = 0;           // at a square corner, elongated: top-hat residue
+  int surface_elongated = 0;  // elongated in the board's plane
+};
+
+// Laser dots land on the board's plane: the blobs inside the board's squares area grown by
+// `margin_squares` (the plate or screen around the printed pattern), not inside `exclude` (the
+// other board's outline, grown by half a square), round in the board's plane.
+std::vector<vision::Dot> DotsOnBoard(const std::vector<vision::Dot>& dots,
+                                     const vision::CheckerboardDetection& board,
+                                     vision::BoardSize size, double margin_squares,
+                                     const PipelineOptions& o,
+                                     const std::vector<Eigen::Vector2d>& exclude,
+                                     RegionRejections* rej);
+
+// The frame's dots on its board's plane, and the blobs refused there, into its detection row.
+void RecordDots(const std::vector<vision::Dot>& on_plane, const std::vector<vision::Dot>& all,
+                const RegionRejections& region, FrameDetection* fd);
+
+// The corners of `board` that no laser dot of the frame disturbs (their average over a view
+// leaves the others out).
+std::vector<char> CornersClearOfDots(const vision::CheckerboardDetection& board,
+                                     const std::vector<vision::Dot>& dots);
+
+// The stage's result: one measurement and one detection row per frame of `recording`, step 1
+// frames first, then step 2, each in session.yaml's order.
+struct RecordingMeasurement {
+  std::vector<ImageMeasurement> images;
+  // Boards found (method, square size, corners), blobs and their image-level refusals; the
+  // later stages add what they decide.
+  std::vector<FrameDetection> detections;
+  // Notes: how the dots were centred. Error: the measurement could not go on (an image cannot
+  // be read, exposures of one scene differ in size); `images` and `detections` are then empty.
+  StageLog log;
+};
+// Measures every image of `recording` (PipelineOptions::image_threads at a time, OpenCV's own
+// parallel loops off meanwhile). `load` is called from several threads at once.
+RecordingMeasurement MeasureRecording(const dataset::Recording& recording, const ImageLoader& load,
+                                      const PipelineOptions& options);
+
+}  // namespace msmcal::solver

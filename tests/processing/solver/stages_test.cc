@@ -1,0 +1,403 @@
+// One test (or a few) per stage of the solver (processing/solver/stages/), on small synthetic
+// inputs built here: no images except for the exposure averaging.
+#include <gtest/gtest.h>
+
+#include <Eigen/Eigenvalues>
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <opencv2/core.hpp>
+#include <random>
+
+#include "processing/geometry/mirror_frame.h"
+#include "processing/solver/stages/estimate.h"
+#include "processing/solver/stages/exposures.h"
+#include "processing/solver/stages/mirror0.h"
+#include "processing/solver/stages/step1_beams.h"
+#include "processing/solver/stages/step2_groups.h"
+#include "processing/solver/stages/triggers.h"
+#include "processing/solver/stages/uncertainty.h"
+#include "processing/solver/stages/validation.h"
+#include "processing/solver/synthetic_scene.h"
+
+namespace msmcal::solver {
+namespace {
+
+using dataset::Step2Kind;
+using geometry::Line;
+using geometry::Plane;
+using geometry::Rigid3d;
+
+// ---------------- exposures ----------------
+
+dataset::Recording ExposureRecording() {
+  dataset::Recording r;
+  r.step1 = {{"step1/0.png", 0, {1, 2}},
+             {"step1/1.png", 0, {2, 1}},
+             {"step1/2.png", 0, {1, 2}},
+             {"step1/3.png", 1, {1, 2}},
+             {"step1/4.png", 0, {1}}};
+  r.step2 = {{"step2/0.png", Step2Kind::kNeutral, {}, {1, 2}},
+             {"step2/1.png", Step2Kind::kScan, {3, 4}, {1, 2}},
+             {"step2/2.png", Step2Kind::kNeutral, {}, {1, 2}},
+             {"step2/3.png", Step2Kind::kScan, {4, 3}, {2, 1}},
+             {"step2/4.png", Step2Kind::kScan, {5}, {1, 2}}};
+  return r;
+}
+
+TEST(ExposuresStage, GroupsRepeatedExposuresOfOneScene) {
+  const ExposureScenes e = CollapseExposures(ExposureRecording());
+  ASSERT_TRUE(e.Collapsed());
+  EXPECT_EQ(e.scenes, 3);           // step1 pose 0 {1,2}; step2 neutral; step2 scan {3,4}
+  EXPECT_EQ(e.averaged_frames, 7);  // 3 + 2 + 2
+  ASSERT_EQ(e.recording.step1.size(), 3u);
+  ASSERT_EQ(e.recording.step2.size(), 3u);
+  EXPECT_EQ(e.members.at("step1/0.png"),
+            (std::vector<std::string>{"step1/0.png", "step1/1.png", "step1/2.png"}));
+  EXPECT_EQ(e.members.at("step2/1.png"), (std::vector<std::string>{"step2/1.png", "step2/3.png"}));
+  EXPECT_EQ(e.SceneOf("step1/2.png"), "step1/0.png");
+  EXPECT_EQ(e.SceneOf("step2/2.png"), "step2/0.png");
+  EXPECT_EQ(e.SceneOf("step1/4.png"), "step1/4.png");
+  EXPECT_NE(e.Note().find("7 frames are repeated exposures of 3 scene(s)"), std::string::npos);
+}
+
+TEST(ExposuresStage, NothingToCollapseLeavesTheRecordingAlone) {
+  dataset::Recording r;
+  r.step1 = {{"a.png", 0, {1}}, {"b.png", 1, {1}}};
+  const ExposureScenes e = CollapseExposures(r);
+  EXPECT_FALSE(e.Collapsed());
+  EXPECT_TRUE(e.members.empty());
+  EXPECT_EQ(e.SceneOf("a.png"), "a.png");
+  const cv::Mat img(4, 5, CV_8UC1, cv::Scalar(7));
+  const cv::Mat out = LoadScene(
+      e, [&](const std::string&) { return img; }, "a.png");
+  EXPECT_EQ(out.type(), CV_8UC1);  // as loaded
+}
+
+TEST(ExposuresStage, AveragesExposuresPixelByPixelOnTheWideScale) {
+  const ExposureScenes e = CollapseExposures(ExposureRecording());
+  auto load = [](const std::string& f) {
+    const int v = f == "step1/0.png" ? 10 : f == "step1/1.png" ? 20 : f == "step1/2.png" ? 33 : 5;
+    cv::Mat m(3, 4, CV_8UC1, cv::Scalar(v));
+    m.at<uint8_t>(0, 0) = 255;  // saturated in every exposure
+    return m;
+  };
+  const cv::Mat avg = LoadScene(e, load, "step1/0.png");
+  ASSERT_EQ(avg.type(), CV_16UC1);
+  EXPECT_EQ(avg.at<uint16_t>(1, 1), 21 * 257);  // mean of 10, 20, 33 on the 16-bit scale
+  EXPECT_EQ(avg.at<uint16_t>(0, 0), 65535);     // full scale stays full scale
+  const cv::Mat single = LoadScene(e, load, "step1/3.png");  // one exposure: widened only
+  ASSERT_EQ(single.type(), CV_16UC1);
+  EXPECT_EQ(single.at<uint16_t>(2, 3), 5 * 257);
+  auto bad = [](const std::string& f) {
+    return f == "step1/1.png" ? cv::Mat(2, 2, CV_8UC1, cv::Scalar(0)) : cv::Mat(3, 4, CV_8UC1);
+  };
+  EXPECT_THROW(LoadScene(e, bad, "step1/0.png"), SolveError);
+}
+
+// ---------------- step 1: beam labels ----------------
+
+struct Step1Scene {
+  std::vector<Line> beams;
+  std::vector<Rigid3d> world_from_pose;
+  std::vector<Step1View> views;
+  std::vector<std::vector<int>> truth;  // per view, beam per dot
+  Eigen::Vector3d sliding_z = Eigen::Vector3d::Zero();
+  BeamTable table;
+};
+
+// Three beams travelling along +Z of {W} (roughly), a plate at 4 poses along them (tilted a
+// little); identification frames (one beam) at pose 0, then frames with all beams whose dots
+// come in a shuffled order.
+Step1Scene MakeStep1Scene() {
+  Step1Scene s;
+  s.beams = {Line::FromPointDirection({0, 0, 0}, {0.02, 0.01, 1}),
+             Line::FromPointDirection({30, 5, 0}, {-0.05, 0.0, 1}),
+             Line::FromPointDirection({10, 25, 0}, {0.0, -0.06, 1})};
+  s.table = MakeBeamTable({{7, dataset::BeamRole::kEstimate},
+                           {8, dataset::BeamRole::kEstimate},
+                           {9, dataset::BeamRole::kValidate}});
+  std::mt19937 rng(5);
+  for (int l = 0; l < 4; ++l) {
+    const Eigen::Matrix3d r = (Eigen::AngleAxisd(0.05 * l, Eigen::Vector3d::UnitX()) *
+                               Eigen::AngleAxisd(-0.03 * l, Eigen::Vector3d::UnitY()))
+                                  .toRotationMatrix();
+    s.world_from_pose.emplace_back(r, Eigen::Vector3d(0, 0, 100 + 60 * l));
+    s.sliding_z += r.col(2);
+  }
+  auto dot_of = [&](int b, int l) {
+    const Plane plane =
+        geometry::TransformPlane(s.world_from_pose[l], Plane{Eigen::Vector3d::UnitZ(), 0});
+    return *geometry::IntersectLinePlane(s.beams[b], plane);
+  };
+  auto add = [&](int l, std::vector<int> beams_in_dot_order, std::vector<int> listed) {
+    Step1View v;
+    v.file = "step1/" + std::to_string(s.views.size()) + ".png";
+    v.pose = l;
+    v.beams = listed;
+    for (int b : beams_in_dot_order) {
+      v.dots_in_world.push_back(dot_of(b, l));
+      vision::Dot d;
+      d.px = Eigen::Vector2d(100 + b, 200 + l);
+      d.cov_px2 = Eigen::Matrix2d::Identity() * 0.01;
+      v.dots.push_back(d);
+    }
+    s.views.push_back(v);
+    s.truth.push_back(beams_in_dot_order);
+  };
+  for (int b = 0; b < 3; ++b) add(0, {b}, {b});
+  for (int l = 1; l < 4; ++l) {
+    std::vector<int> order = {0, 1, 2};
+    std::shuffle(order.begin(), order.end(), rng);
+    add(l, order, {0, 1, 2});
+  }
+  return s;
+}
+
+TEST(Step1Stage, LabelsDotsWithTheirBeamsAndFitsTheBeams) {
+  const Step1Scene s = MakeStep1Scene();
+  const BeamLabels out = LabelBeams(s.views, s.world_from_pose, s.sliding_z, s.table);
+  ASSERT_TRUE(out.log.error.empty()) << out.log.error;
+  EXPECT_TRUE(out.log.dropped.empty());
+  ASSERT_EQ(out.label.size(), s.views.size());
+  for (size_t k = 0; k < s.views.size(); ++k) EXPECT_EQ(out.label[k], s.truth[k]) << k;
+  EXPECT_EQ(out.sliding_dots.size(), 12u);
+  ASSERT_EQ(out.beams.size(), 3u);
+  for (int b = 0; b < 3; ++b) {
+    EXPECT_GT(std::abs(out.beams[b].v.dot(s.beams[b].v)), 1 - 1e-12) << b;
+    EXPECT_GT(out.beams[b].v.dot(s.sliding_z), 0) << b;  // travels into the plate
+    EXPECT_LT((out.beams[b].m - s.beams[b].m).norm(), 1e-9) << b;
+  }
+}
+
+TEST(Step1Stage, DropsTheLabelsOfAFrameOffTheBeamLines) {
+  Step1Scene s = MakeStep1Scene();
+  s.views[4].dots_in_world[1] += Eigen::Vector3d(4, 0, 0);  // a stray blob counted as a dot
+  const BeamLabels out = LabelBeams(s.views, s.world_from_pose, s.sliding_z, s.table);
+  ASSERT_TRUE(out.log.error.empty()) << out.log.error;
+  ASSERT_EQ(out.log.dropped.size(), 1u);
+  EXPECT_EQ(out.log.dropped[0].file, s.views[4].file);
+  EXPECT_NE(out.log.dropped[0].reason.find("labels inconsistent"), std::string::npos);
+  EXPECT_EQ(out.label[4], (std::vector<int>{-1, -1, -1}));
+  EXPECT_EQ(out.label[5], s.truth[5]);
+}
+
+TEST(Step1Stage, FailsWhenABeamHasOnePose) {
+  Step1Scene s = MakeStep1Scene();
+  s.views.resize(3);  // identification frames only: every beam at pose 0
+  const BeamLabels out = LabelBeams(s.views, s.world_from_pose, s.sliding_z, s.table);
+  EXPECT_EQ(out.log.error, "step1: beam 7 has dots on 1 sliding pose(s); needs >= 2");
+}
+
+// ---------------- step 2: reflection groups ----------------
+
+SyntheticSceneOptions SmallScene() {
+  SyntheticSceneOptions o;
+  o.num_planes = 8;
+  o.num_poses = 4;
+  o.seed = 11;
+  return o;
+}
+
+BeamTable SceneBeams(const SyntheticScene& sc) {
+  std::vector<dataset::BeamSpec> specs;
+  for (size_t b = 0; b < sc.truth.beams.size(); ++b)
+    specs.push_back(
+        {static_cast<int>(b), std::count(sc.estimate_beams.begin(), sc.estimate_beams.end(), b)
+                                  ? dataset::BeamRole::kEstimate
+                                  : dataset::BeamRole::kValidate});
+  return MakeBeamTable(specs);
+}
+
+// A frame showing planes `planes` (its triggers 100 + plane) with every beam's exact dot, in a
+// shuffled order; `truth[dot] = {plane, beam}`.
+Step2View FrameOfPlanes(const SyntheticScene& sc, const std::vector<int>& planes, int index,
+                        std::vector<std::pair<int, int>>* truth) {
+  Step2View v;
+  v.index = index;
+  v.frame.file = "step2/" + std::to_string(index) + ".png";
+  v.frame.kind = Step2Kind::kScan;
+  for (int p : planes) v.frame.triggers.push_back(100 + p);
+  for (size_t b = 0; b < sc.truth.beams.size(); ++b) v.frame.beams.push_back(static_cast<int>(b));
+  for (int p : planes)
+    for (size_t b = 0; b < sc.truth.beams.size(); ++b) truth->push_back({p, static_cast<int>(b)});
+  std::mt19937 rng(index + 1);
+  std::shuffle(truth->begin(), truth->end(), rng);
+  for (const auto& [p, b] : *truth) {
+    vision::Dot d;
+    d.px = *PredictReflectedDot(sc.obs.camera, sc.truth.c2_from_world, sc.truth.beams[b],
+                                sc.truth.planes[p]);
+    d.cov_px2 = Eigen::Matrix2d::Identity() * 0.01;
+    v.dots.push_back(d);
+    v.dots_in_world.push_back(*BackProjectToBoard(sc.obs.camera, sc.truth.c2_from_world, d.px));
+    v.near_edge.push_back(false);
+  }
+  return v;
+}
+
+TEST(Step2Stage, GroupsReflectedDotsIntoTheirMirrorPlanes) {
+  const SyntheticScene sc = MakeSyntheticScene(SmallScene());
+  ASSERT_EQ(sc.truth.beams.size(), 3u);
+  std::vector<std::vector<std::pair<int, int>>> truth(2);
+  const std::vector<Step2View> views = {FrameOfPlanes(sc, {0, 1, 2}, 0, &truth[0]),
+                                        FrameOfPlanes(sc, {3}, 1, &truth[1])};
+  const ReflectionGroups out = GroupReflections(views, sc.truth.beams, SceneBeams(sc),
+                                                sc.obs.camera, sc.truth.c2_from_world, {});
+  ASSERT_TRUE(out.log.error.empty()) << out.log.error;
+  EXPECT_TRUE(out.log.dropped.empty());
+  EXPECT_TRUE(out.recovered.empty());
+  ASSERT_EQ(out.groups.size(), 4u);
+  for (const Group& g : out.groups) {
+    ASSERT_EQ(g.dot_of_beam.size(), 3u);
+    const int plane = truth[g.frame][g.dot_of_beam.begin()->second].first;
+    for (const auto& [b, d] : g.dot_of_beam) {
+      EXPECT_EQ(truth[g.frame][d].first, plane);  // every dot of the group from one plane
+      EXPECT_EQ(truth[g.frame][d].second, b);     // and of the beam it is assigned to
+    }
+    EXPECT_LT((g.plane.n - sc.truth.planes[plane].n).norm(), 1e-6);
+    EXPECT_NEAR(g.plane.d, sc.truth.planes[plane].d, 1e-3);
+  }
+}
+
+TEST(Step2Stage, DropsAFrameWhoseDotsFitNoPlane) {
+  const SyntheticScene sc = MakeSyntheticScene(SmallScene());
+  std::vector<std::pair<int, int>> truth;
+  Step2View v = FrameOfPlanes(sc, {0}, 0, &truth);
+  for (auto& d : v.dots) d.px += Eigen::Vector2d(40, -30) * (&d - v.dots.data());
+  const ReflectionGroups out = GroupReflections({v}, sc.truth.beams, SceneBeams(sc), sc.obs.camera,
+                                                sc.truth.c2_from_world, {});
+  EXPECT_TRUE(out.groups.empty());
+  ASSERT_EQ(out.log.dropped.size(), 1u);
+  EXPECT_NE(out.log.dropped[0].reason.find("could group only 0 of 1"), std::string::npos);
+}
+
+// ---------------- triggers ----------------
+
+TEST(TriggersStage, RecoversAKnownTriggerAssignment) {
+  // Drive-phase model: alpha = 3 sin(wf t) + 0.5 cos(wf t), beta = 2 sin(ws t) (deg).
+  const double fast_hz = 7.3, slow_hz = 0.61;
+  auto model = [&](double t) {
+    return Eigen::Vector2d(
+        3 * std::sin(2 * M_PI * fast_hz * t) + 0.5 * std::cos(2 * M_PI * fast_hz * t),
+        2 * std::sin(2 * M_PI * slow_hz * t));
+  };
+  std::vector<TriggerFrame> frames;
+  std::vector<TriggerGroup> groups;
+  std::vector<int> truth;
+  std::mt19937 rng(3);
+  for (int f = 0; f < 8; ++f) {
+    TriggerFrame fr;
+    for (int s = 0; s < 3; ++s) fr.t_s.push_back(0.013 * (3 * f + s) + 0.0021 * f * f);
+    std::vector<int> order = {0, 1, 2};
+    std::shuffle(order.begin(), order.end(), rng);
+    for (int s : order) {
+      groups.push_back({f, model(fr.t_s[s])});
+      truth.push_back(s);
+    }
+    frames.push_back(fr);
+  }
+  std::string note;
+  TriggerModel fitted;
+  const std::vector<int> slots = AssignTriggers(frames, groups, {Eigen::Vector2d::Zero()}, fast_hz,
+                                                slow_hz, {}, &note, &fitted);
+  EXPECT_EQ(slots, truth);
+  EXPECT_NE(note.find("24 groups in 8 multi-trigger frames"), std::string::npos) << note;
+  EXPECT_LT((fitted.Predict(0.2, true) - model(0.2)).norm(), 1e-6);
+}
+
+TEST(TriggersStage, CollectsOnePlanePerKindAndTriggerIndex) {
+  const SyntheticScene sc = MakeSyntheticScene(SmallScene());
+  std::vector<std::pair<int, int>> truth;
+  std::vector<Step2View> views = {FrameOfPlanes(sc, {0}, 0, &truth),
+                                  FrameOfPlanes(sc, {1}, 1, &truth),
+                                  FrameOfPlanes(sc, {2}, 2, &truth)};
+  views[0].frame.kind = Step2Kind::kNeutral;
+  views[0].frame.triggers.clear();
+  views[1].frame.kind = Step2Kind::kFastOnly;
+  const BeamTable beams = SceneBeams(sc);
+  std::vector<Group> groups;
+  for (int f = 0; f < 3; ++f) {
+    Group g;
+    g.frame = f;
+    for (int b = 0; b < 3; ++b) g.dot_of_beam[b] = b;
+    groups.push_back(g);
+  }
+  const MirrorPlanes one_fast = CollectMirrorPlanes(views, groups, beams);
+  EXPECT_EQ(one_fast.log.error, "step2: 1 usable fast_only mirror planes; {0} needs >= 2");
+  views[2].frame.kind = Step2Kind::kFastOnly;
+  groups.push_back(groups[2]);  // the same (kind, j) again: the same plane
+  const MirrorPlanes out = CollectMirrorPlanes(views, groups, beams);
+  EXPECT_TRUE(out.log.error.empty()) << out.log.error;
+  ASSERT_EQ(out.keys.size(), 3u);
+  EXPECT_EQ(out.keys[0], std::make_pair(Step2Kind::kNeutral, -1));
+  EXPECT_EQ(out.keys[1], std::make_pair(Step2Kind::kFastOnly, 101));
+  EXPECT_EQ(out.num_fast_only, 2);
+  EXPECT_EQ(out.estimate_dots.size(), 4u * 2);  // two estimate beams per group
+  EXPECT_EQ(out.validation_dots.size(), 4u);
+  EXPECT_EQ(out.estimate_dots.back().plane, 2);
+}
+
+// ---------------- estimate, {0}, uncertainty, validation ----------------
+
+TEST(EstimateStage, MergesRepeatedViewsOverTheirClearCorners) {
+  CornerSet a{BoardView::kC2World, -1, {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {1, 1, 0}, {2, 0, 0}}, {}};
+  a.px = {{10, 10}, {20, 10}, {10, 20}, {20, 20}, {30, 10}};
+  CornerSet b = a;
+  for (auto& p : b.px) p += Eigen::Vector2d(1, -1);
+  int dropped = -1;
+  const auto merged = MergeRepeatedViews({a, b}, {{1, 1, 1, 1, 0}, {1, 1, 1, 1, 0}}, &dropped);
+  ASSERT_EQ(merged.size(), 1u);
+  EXPECT_EQ(dropped, 1);  // the corner no frame sees clear
+  ASSERT_EQ(merged[0].px.size(), 4u);
+  EXPECT_EQ(merged[0].px[0], Eigen::Vector2d(10.5, 9.5));
+}
+
+TEST(EstimateStage, MleRecoversTheSyntheticTruthAndHomeFrameHasItsConvention) {
+  const SyntheticScene sc = MakeSyntheticScene(SmallScene());
+  std::vector<std::vector<char>> clear;
+  for (const auto& c : sc.obs.corners) clear.emplace_back(c.px.size(), 1);
+  const MleEstimate est = EstimateMle(sc.obs, clear, {});
+  ASSERT_TRUE(est.log.error.empty()) << est.log.error;
+  ASSERT_TRUE(est.mle.usable);
+  for (size_t p = 0; p < sc.truth.planes.size(); ++p)
+    EXPECT_LT(geometry::AngleBetween(est.mle.estimate.planes[p].n, sc.truth.planes[p].n), 1e-3);
+
+  // Plane 0 as neutral, 1 and 2 fast-only, the rest scan (trigger j = plane index).
+  std::vector<std::pair<Step2Kind, int>> keys = {{Step2Kind::kNeutral, -1}};
+  for (int p = 1; p < sc.obs.num_planes; ++p)
+    keys.emplace_back(p < 3 ? Step2Kind::kFastOnly : Step2Kind::kScan, p);
+  const Mirror0 m0 = EstimateMirror0(keys, est.mle);
+  EXPECT_EQ(m0.roles.neutral, 0);
+  EXPECT_EQ(m0.roles.fast_only, (std::vector<int>{1, 2}));
+  ASSERT_EQ(m0.support_planes.size(), 3u);
+  const auto neutral =
+      geometry::PoseFromWorldPlane(m0.world_from_mirror0, est.mle.estimate.planes[0]);
+  EXPECT_NEAR(neutral.alpha_rad, 0, 1e-12);  // the neutral plane is home by definition
+  EXPECT_NEAR(neutral.beta_rad, 0, 1e-12);
+  EXPECT_NEAR(neutral.trans_mm, 0, 1e-9);
+
+  const Mirror0Covariance cov =
+      PropagateMirror0Covariance(m0.roles, est.mle, m0.world_from_mirror0);
+  EXPECT_LT((cov.cov - cov.cov.transpose()).norm(), 1e-12 * cov.cov.norm());
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, 6, 6>> es(cov.cov);
+  EXPECT_GT(es.eigenvalues().minCoeff(), -1e-15);
+  EXPECT_GT(cov.cov.trace(), 0);
+  const auto rows = ScanPlaneRows(keys, m0.roles, {}, est.mle, m0.world_from_mirror0, cov);
+  ASSERT_EQ(rows.size(), static_cast<size_t>(sc.obs.num_planes - 3));
+  for (const auto& r : rows) {
+    EXPECT_GT(r.sigma_alpha_deg, 0);
+    EXPECT_LT(r.sigma_alpha_deg, 0.05);
+  }
+
+  std::vector<ReflectedDot> held_out = sc.validation_dots;
+  const ValidationResult v =
+      ValidateHeldOutBeams(est.obs, held_out, keys, sc.estimate_beams, {0, 1, 2}, est.mle);
+  size_t on_scan = 0;
+  for (const auto& d : held_out) on_scan += d.plane >= 3;
+  EXPECT_EQ(v.details.size(), on_scan);
+  EXPECT_LT(v.rms_px, 1.0);
+  EXPECT_GT(v.rms_normalised, 0.2);  // errors as large as their predicted covariance says
+  EXPECT_LT(v.rms_normalised, 3.0);
+}
+
+}  // namespace
+}  // namespace msmcal::solver
