@@ -167,6 +167,18 @@ void RunExplain(const SolveArgs& args, const solver::PipelineOptions& options) {
       cands.size(), options.dots.threshold_fraction,
       static_cast<size_t>(
           std::count_if(cands.begin(), cands.end(), [](const auto& c) { return c.kept; })));
+  // The blobs nearest the board that carries the dots first: those are the ones a reader looks
+  // for (a frame has hundreds of board-residue blobs; only the first 60 are listed).
+  const auto& host = asks.size() == 2 ? m.boards[1] : m.boards[0];
+  if (host && !host->corners_px.empty()) {
+    Eigen::Vector2d centre = Eigen::Vector2d::Zero();
+    for (const auto& p : host->corners_px) centre += p;
+    centre /= static_cast<double>(host->corners_px.size());
+    std::stable_sort(cands.begin(), cands.end(), [&](const auto& a, const auto& b) {
+      if (a.kept != b.kept) return a.kept;
+      return (a.centroid_px - centre).squaredNorm() < (b.centroid_px - centre).squaredNorm();
+    });
+  }
   size_t shown = 0;
   std::map<std::string, int> hidden;
   for (const auto& c : cands) {
@@ -181,7 +193,6 @@ void RunExplain(const SolveArgs& args, const solver::PipelineOptions& options) {
   }
   for (const auto& [why, n] : hidden)
     std::printf("  ... and %d more refused: %s\n", n, why.c_str());
-  const auto& host = asks.size() == 2 ? m.boards[1] : m.boards[0];
   if (m.adaptive_dots) {
     std::printf(
         "the first pass fell short of the expected dots on the board's plane; the solve "

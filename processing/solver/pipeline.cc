@@ -157,6 +157,13 @@ SolveOutput SolveRecording(const dataset::Recording& input, const ImageLoader& i
   TriggerAssignment assigned =
       AssignTriggerSlots(step2.views, std::move(grouped.groups), std::move(grouped.recovered),
                          rec.triggers, rec.drive, o);
+  for (const int v : assigned.off_model) {
+    FrameDetection& fd = det[rec.step1.size() + step2.views[v].index];
+    fd.partial = true;
+    const std::string why = "a mirror plane off the drive-phase model left out";
+    if (fd.note.find(why) == std::string::npos)
+      fd.note = fd.note.empty() ? why : fd.note + "; " + why;
+  }
   absorb(std::move(assigned.log));
   MirrorPlanes planes = CollectMirrorPlanes(step2.views, assigned.groups, beams);
   out.num_neutral_planes = planes.num_neutral;

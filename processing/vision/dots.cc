@@ -31,10 +31,37 @@ inline int GreenExcess(const T* row, int x) {
   return static_cast<int>(p[1]) - std::max<int>(p[0], p[2]);
 }
 
-// Per channel: the blob's brightest value minus the median of a ring around its box (the box
-// grown by its own size, at least 3 px); returns the green rise minus the larger of the blue and
-// red rises.
-int RelativeGreenExcess(const cv::Mat& image, const cv::Rect& box) {
+// Per channel: each blob pixel's rise over its local background, the channel's morphological
+// opening with the top-hat's kernel (a flat k x k element: what the dot detector itself takes as
+// the background); returns the largest green rise minus the larger of the blue and red rises at
+// that pixel. On a checkerboard the background is the square under the spot, whatever its tint
+// (a ring median mixes dark and light squares and reports the light square's colour instead).
+// Without a kernel (kernel_px < 3): the median of a ring around the box (the box grown by its
+// own size, at least 3 px).
+int RelativeGreenExcess(const cv::Mat& image, const cv::Rect& box, int kernel_px) {
+  if (kernel_px >= 3) {
+    const int m = kernel_px;
+    const cv::Rect win = cv::Rect(box.x - m, box.y - m, box.width + 2 * m, box.height + 2 * m) &
+                         cv::Rect(0, 0, image.cols, image.rows);
+    const cv::Mat kernel =
+        cv::getStructuringElement(cv::MORPH_RECT, cv::Size(kernel_px, kernel_px));
+    std::array<cv::Mat1i, 3> rise;
+    for (int c = 0; c < 3; ++c) {
+      cv::Mat ch, eroded, opened, ch32, opened32;
+      cv::extractChannel(image(win), ch, c);
+      cv::erode(ch, eroded, kernel);
+      cv::dilate(eroded, opened, kernel);
+      ch.convertTo(ch32, CV_32S);
+      opened.convertTo(opened32, CV_32S);
+      rise[c] = ch32 - opened32;
+    }
+    int best = std::numeric_limits<int>::min();
+    const cv::Rect in_win = (box & win) - win.tl();
+    for (int y = in_win.y; y < in_win.y + in_win.height; ++y)
+      for (int x = in_win.x; x < in_win.x + in_win.width; ++x)
+        best = std::max(best, rise[1](y, x) - std::max(rise[0](y, x), rise[2](y, x)));
+    return best;
+  }
   const int m = std::max(3, std::max(box.width, box.height));
   const cv::Rect outer = cv::Rect(box.x - m, box.y - m, box.width + 2 * m, box.height + 2 * m) &
                          cv::Rect(0, 0, image.cols, image.rows);
@@ -440,7 +467,8 @@ std::vector<Dot> DetectDots(const cv::Mat& image, const DotOptions& options,
                                                        : GreenExcess(image.ptr<uint16_t>(y), x));
       // Relative to the surroundings: a green spot on a light (white or tinted) square where
       // blue or red is saturated too raises green alone (the absolute excess is ~0 there).
-      if (best < min_excess) best = std::max(best, RelativeGreenExcess(image, d.blob_box));
+      if (best < min_excess)
+        best = std::max(best, RelativeGreenExcess(image, d.blob_box, options.background_kernel_px));
       if (best >= min_excess) {
         green_dots.push_back(d);
       } else {

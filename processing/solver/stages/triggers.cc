@@ -88,8 +88,9 @@ std::vector<int> AssignTriggers(const std::vector<TriggerFrame>& frames,
       };
       const std::vector<int> perm = BestPermutation(n, cost);
       for (size_t i = 0; i < gs.size(); ++i) {
-        score += cost(static_cast<int>(i), perm[i]);
-        if (out) (*out)[gs[i]] = perm[i];
+        const double c = cost(static_cast<int>(i), perm[i]);
+        score += c;
+        if (out) (*out)[gs[i]] = c < thr2 ? perm[i] : -1;
       }
     }
     return score;
@@ -122,9 +123,13 @@ std::vector<int> AssignTriggers(const std::vector<TriggerFrame>& frames,
   assign(best_coef, false, &slot);
   Eigen::MatrixXd coef = best_coef;
   bool harmonics = false;
+  // Refined on the inliers only: a plane from a wrong pairing of dots (tens of degrees off) would
+  // otherwise pull the least-squares model, and with it every assignment, off.
   for (int round = 0; round < 4; ++round) {
     std::vector<std::pair<int, int>> labelled;
-    for (size_t g = 0; g < groups.size(); ++g) labelled.emplace_back(static_cast<int>(g), slot[g]);
+    for (size_t g = 0; g < groups.size(); ++g)
+      if (slot[g] >= 0) labelled.emplace_back(static_cast<int>(g), slot[g]);
+    if (labelled.size() + neutral_angles_deg.size() < 5) break;
     harmonics = labelled.size() + neutral_angles_deg.size() >= 18;
     fit(labelled, harmonics, &coef);
     assign(coef, harmonics, &slot);
@@ -132,16 +137,22 @@ std::vector<int> AssignTriggers(const std::vector<TriggerFrame>& frames,
   if (model) *model = TriggerModel{coef, harmonics, fast_hz, slow_hz};
   if (note) {
     double sum2 = 0;
+    size_t inliers = 0;
     for (size_t g = 0; g < groups.size(); ++g) {
+      if (slot[g] < 0) continue;
       const auto& fr = frames[groups[g].frame];
       const Eigen::Vector2d pred =
           coef.transpose() * Features(fr.t_s[slot[g]], fr.slow_on, wf, ws, harmonics);
       sum2 += (groups[g].angles_deg - pred).squaredNorm();
+      ++inliers;
     }
     std::ostringstream s;
     s << "trigger assignment: " << groups.size() << " groups in " << multi.size()
       << " multi-trigger frames, drive-phase model RMS "
-      << std::sqrt(sum2 / std::max<size_t>(1, groups.size())) << " deg";
+      << std::sqrt(sum2 / std::max<size_t>(1, inliers)) << " deg";
+    if (inliers < groups.size())
+      s << " over " << inliers << " groups (" << groups.size() - inliers << " more than "
+        << o.ransac_inlier_deg << " deg off the model left out)";
     *note = s.str();
   }
   return slot;
@@ -206,6 +217,29 @@ TriggerAssignment AssignTriggerSlots(const std::vector<Step2View>& s2, std::vect
                                         drive.slow.frequency_hz, o, &note, &model);
       for (size_t k = 0; k < multi_index.size(); ++k) groups[multi_index[k]].slot = slots[k];
       out.log.notes.push_back(note);
+      // More than half off the model: the trigger times or the drive do not describe these
+      // frames (or the grouping failed); no assignment to trust.
+      const size_t off = static_cast<size_t>(std::count(slots.begin(), slots.end(), -1));
+      if (2 * off > slots.size()) {
+        std::ostringstream msg;
+        msg << "step2: trigger assignment failed: " << off << " of " << slots.size()
+            << " mirror planes of multi-trigger frames fit no drive-phase model within "
+            << o.ransac_inlier_deg
+            << " deg (check the trigger times and drive frequencies in session.yaml)";
+        out.log.error = msg.str();
+        return out;
+      }
+      for (size_t g = 0; g < groups.size();) {
+        if (groups[g].slot >= 0) {
+          ++g;
+          continue;
+        }
+        out.off_model.push_back(groups[g].frame);
+        out.log.notes.push_back(s2[groups[g].frame].frame.file +
+                                ": a mirror plane off the drive-phase model (a wrong pairing of "
+                                "dots) left out");
+        groups.erase(groups.begin() + static_cast<std::ptrdiff_t>(g));
+      }
       // Tentative groups: the one slot their frame's complete groups left free, if the model
       // predicts their angles there within a quarter of the RANSAC inlier threshold (wrong beam
       // pairings are degrees off; the model's RMS is ~0.001 deg on the simulator).

@@ -23,7 +23,10 @@ namespace msmcal::solver {
 // the permutation of its trigger indices that best fits the model
 //   angle_k(t) = c_k + sum over axes a, harmonics h of (s sin(h w_a t) + c cos(h w_a t)),
 // with the slow axis off in fast_only frames. Returns, per group, the assigned index into its
-// frame's trigger list. `groups_of_frame[f]` lists the group indices of frame f.
+// frame's trigger list, or -1 for a group the model does not predict within
+// options.ransac_inlier_deg at any of its frame's free slots (a wrong pairing of dots: the
+// model is refined on the inliers only, so one such plane cannot pull the others off).
+// `groups_of_frame[f]` lists the group indices of frame f.
 struct TriggerGroup {
   int frame = 0;
   Eigen::Vector2d angles_deg = Eigen::Vector2d::Zero();
@@ -50,6 +53,9 @@ std::vector<int> AssignTriggers(const std::vector<TriggerFrame>& frames,
 // frame lists a trigger that session.yaml does not define.
 struct TriggerAssignment {
   std::vector<Group> groups;
+  // Per step 2 view: planes left out because the drive-phase model does not predict them at any
+  // of the frame's free triggers (a wrong pairing of dots); the frame is then partly used.
+  std::vector<int> off_model;
   StageLog log;
 };
 TriggerAssignment AssignTriggerSlots(const std::vector<Step2View>& views, std::vector<Group> groups,

@@ -68,6 +68,17 @@ struct SolveRun {
   std::string error;
 };
 
+// MSMCAL_TEST_DUMP=DIR: the images as the solver sees them and the simulator's settings
+// (`msmcal simulate X --config DIR/sim.yaml` then gives their session.yaml), for
+// `msmcal solve --explain` on a failing scene.
+void MaybeDump(const sim::SimOptions& o, const std::string& file, const cv::Mat& img) {
+  const char* dump = std::getenv("MSMCAL_TEST_DUMP");
+  if (!dump || img.empty()) return;
+  std::filesystem::create_directories((std::filesystem::path(dump) / file).parent_path());
+  cv::imwrite((std::filesystem::path(dump) / file).string(), img);
+  std::ofstream(std::filesystem::path(dump) / "sim.yaml") << sim::SimOptionsToYaml(o);
+}
+
 using ImageEdit = std::function<cv::Mat(const std::string& file, cv::Mat img)>;
 
 SolveRun Solve(const sim::SimOptions& o, const ImageEdit& edit = {},
@@ -82,14 +93,7 @@ SolveRun Solve(const sim::SimOptions& o, const ImageEdit& edit = {},
     for (size_t i = 0; i < r.rec.step2.size(); ++i)
       if (r.rec.step2[i].file == file) img = r.sim->RenderStep2Frame(i);
     if (!img.empty() && edit) img = edit(file, img);
-    // MSMCAL_TEST_DUMP=DIR: the images as the solver sees them and the simulator's settings
-    // (`msmcal simulate X --config DIR/sim.yaml` then gives their session.yaml), for
-    // `msmcal solve --explain` on a failing scene.
-    if (const char* dump = std::getenv("MSMCAL_TEST_DUMP"); dump && !img.empty()) {
-      std::filesystem::create_directories((std::filesystem::path(dump) / file).parent_path());
-      cv::imwrite((std::filesystem::path(dump) / file).string(), img);
-      std::ofstream(std::filesystem::path(dump) / "sim.yaml") << sim::SimOptionsToYaml(o);
-    }
+    MaybeDump(o, file, img);
     return img;
   };
   try {
@@ -374,11 +378,13 @@ TEST_P(RandomisedScenes, SolvesHonestlyOrSaysWhy) {
   r.sim = std::make_unique<sim::RigSimulator>(d.sim);
   r.rec = r.sim->MakeRecording(/*with_hall=*/false);
   const ImageLoader load = [&](const std::string& file) -> cv::Mat {
+    cv::Mat img;
     for (size_t i = 0; i < r.rec.step1.size(); ++i)
-      if (r.rec.step1[i].file == file) return ApplyDraw(d, r.sim->RenderStep1Frame(i));
+      if (r.rec.step1[i].file == file) img = ApplyDraw(d, r.sim->RenderStep1Frame(i));
     for (size_t i = 0; i < r.rec.step2.size(); ++i)
-      if (r.rec.step2[i].file == file) return ApplyDraw(d, r.sim->RenderStep2Frame(i));
-    return cv::Mat();
+      if (r.rec.step2[i].file == file) img = ApplyDraw(d, r.sim->RenderStep2Frame(i));
+    MaybeDump(d.sim, file, img);
+    return img;
   };
   try {
     r.out = SolveRecording(r.rec, load);
@@ -399,16 +405,13 @@ TEST_P(RandomisedScenes, SolvesHonestlyOrSaysWhy) {
       r.out.rms_normalised_validation, r.out.dropped.size());
   for (const auto& dr : r.out.dropped)
     std::printf("  dropped %s: %s\n", dr.file.c_str(), dr.reason.c_str());
+  for (const auto& n : r.out.notes) std::printf("  note: %s\n", n.c_str());
   // Honest: the held-out beam's errors against their predicted covariance (1 expected; one
   // scene's RMS over ~20 dots scatters by about +-30 %).
   EXPECT_LT(r.out.rms_normalised_validation, 2.5) << d.text;
-  // Known defect, kept visible: scene 15 "solves" with every plane tens of degrees off while its
-  // held-out dots agree (the validation cannot see planes attached to the wrong trigger times
-  // or a consistently wrong world frame). Reported as skipped until it is fixed; any other scene
-  // failing this way fails the test.
-  if (e.normal_rms_deg >= 0.5 && GetParam() == 15)
-    GTEST_SKIP() << "known defect (session 5 notes): planes " << e.normal_rms_deg
-                 << " deg off truth with honest-looking validation";
+  // A scene whose planes are far off while its held-out dots agree would be planes attached to
+  // the wrong trigger times (the validation cannot see that; scene 15 did this until the
+  // drive-phase model was refined on its inliers only).
   EXPECT_LT(e.normal_rms_deg, 0.5) << d.text;
 }
 
