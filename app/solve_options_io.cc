@@ -79,6 +79,8 @@ std::vector<Knob> Knobs(solver::PipelineOptions& o) {
        "measure a frame short of dots again with settings from its own noise and squares"},
       {"adaptive_min_relative_peak", &o.adaptive_min_relative_peak,
        "in that pass, refuse blobs fainter than this fraction of the frame's brightest"},
+      {"background_dots", &o.background_dots,
+       "measure a frame still short of dots on its difference from its static scene"},
       {"max_surplus_dots", &o.max_surplus_dots,
        "step 2: extra blobs a frame may have and still be grouped"},
       {"max_group_residual_px", &o.max_group_residual_px,

@@ -72,6 +72,13 @@ struct PipelineOptions {
   // compression artefacts and board residue passed by the low threshold; one frame's laser spots
   // are alike).
   double adaptive_min_relative_peak = 0.25;
+  // A frame still short of dots after that (step 1: with more or fewer than its beams) is
+  // measured a third time on its difference from the static scene without it: per pixel, the
+  // smallest value over the other images of its group (step 1: the same sliding pose; step 2:
+  // every frame). The boards cancel there, so spots on square edges and corners, on tinted
+  // squares and in blur are blobs on a flat floor, and board residue is gone. Kept where it
+  // comes closer to the expected count on the board's plane.
+  bool background_dots = true;
   // Trigger-index assignment inside multi-trigger frames (RANSAC over a drive-phase model).
   int ransac_iterations = 3000;
   double ransac_inlier_deg = 0.4;

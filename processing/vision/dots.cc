@@ -412,8 +412,13 @@ std::string DotOptions::Validate() const {
   return s.str();
 }
 
-std::vector<Dot> DetectDots(const cv::Mat& image, const DotOptions& options,
-                            DotRejections* rejections, std::vector<DotCandidate>* candidates_out) {
+namespace {
+
+// DetectDots and DetectDotsOverBackground: `background` empty for the top-hat, else the signal
+// is image - background (and the greenness is read from that difference).
+std::vector<Dot> DetectDotsImpl(const cv::Mat& image, const cv::Mat& background,
+                                const DotOptions& options, DotRejections* rejections,
+                                std::vector<DotCandidate>* candidates_out) {
   if (const std::string err = options.Validate(); !err.empty())
     throw std::invalid_argument("DotOptions: " + err);
   if (image.type() != CV_8UC1 && image.type() != CV_8UC3 && image.type() != CV_16UC1 &&
@@ -421,9 +426,13 @@ std::vector<Dot> DetectDots(const cv::Mat& image, const DotOptions& options,
     throw std::invalid_argument("DetectDots: unsupported image type " +
                                 std::to_string(image.type()) +
                                 " (expected 8/16-bit, 1 or 3 channels)");
+  if (!background.empty() &&
+      (background.size() != image.size() || background.type() != image.type()))
+    throw std::invalid_argument(
+        "DetectDotsOverBackground: the background differs from the image in size or type");
   // Scratch images per thread, reused from call to call: a fresh 10 MP buffer costs more in page
   // faults than the filter that fills it.
-  thread_local cv::Mat eroded, opened, top_hat;
+  thread_local cv::Mat eroded, opened, top_hat, difference, difference_green;
   thread_local cv::Mat1b candidates;
   const int full = image.depth() == CV_16U ? 65535 : 255;
   const int threshold =
@@ -439,7 +448,15 @@ std::vector<Dot> DetectDots(const cv::Mat& image, const DotOptions& options,
   // The top-hat goes into its own buffer: the caller's image is const and is read below for
   // saturation.
   cv::Mat signal = mono;
-  if (options.background_kernel_px > 0) {
+  if (!background.empty()) {
+    cv::subtract(image, background, difference);  // saturating: 0 where the image is darker
+    if (bgr) {
+      cv::extractChannel(difference, difference_green, 1);
+      signal = difference_green;
+    } else {
+      signal = difference;
+    }
+  } else if (options.background_kernel_px > 0) {
     // Top-hat: bright structures smaller than the kernel (dots) over the local background
     // (board squares).
     const cv::Mat kernel = cv::getStructuringElement(
@@ -457,17 +474,19 @@ std::vector<Dot> DetectDots(const cv::Mat& image, const DotOptions& options,
           ? Detect<uint8_t>(signal, mono, candidates, options, &local, candidates_out)
           : Detect<uint16_t>(signal, mono, candidates, options, &local, candidates_out);
   if (bgr) {
+    // Over a background, the difference says what the spot added: laser light adds green.
+    const cv::Mat& colour = background.empty() ? image : difference;
     const int min_excess = static_cast<int>(std::lround(options.min_green_excess_fraction * full));
     std::vector<Dot> green_dots;
     for (const Dot& d : dots) {
       int best = std::numeric_limits<int>::min();
       for (int y = d.blob_box.y; y < d.blob_box.y + d.blob_box.height; ++y)
         for (int x = d.blob_box.x; x < d.blob_box.x + d.blob_box.width; ++x)
-          best = std::max(best, image.depth() == CV_8U ? GreenExcess(image.ptr<uint8_t>(y), x)
-                                                       : GreenExcess(image.ptr<uint16_t>(y), x));
+          best = std::max(best, colour.depth() == CV_8U ? GreenExcess(colour.ptr<uint8_t>(y), x)
+                                                        : GreenExcess(colour.ptr<uint16_t>(y), x));
       // Relative to the surroundings: a green spot on a light (white or tinted) square where
       // blue or red is saturated too raises green alone (the absolute excess is ~0 there).
-      if (best < min_excess)
+      if (best < min_excess && background.empty())
         best = std::max(best, RelativeGreenExcess(image, d.blob_box, options.background_kernel_px));
       if (best >= min_excess) {
         green_dots.push_back(d);
@@ -486,6 +505,20 @@ std::vector<Dot> DetectDots(const cv::Mat& image, const DotOptions& options,
   }
   if (rejections) *rejections = local;
   return dots;
+}
+
+}  // namespace
+
+std::vector<Dot> DetectDots(const cv::Mat& image, const DotOptions& options,
+                            DotRejections* rejections, std::vector<DotCandidate>* candidates_out) {
+  return DetectDotsImpl(image, cv::Mat(), options, rejections, candidates_out);
+}
+
+std::vector<Dot> DetectDotsOverBackground(const cv::Mat& image, const cv::Mat& background,
+                                          const DotOptions& options, DotRejections* rejections,
+                                          std::vector<DotCandidate>* candidates) {
+  if (background.empty()) throw std::invalid_argument("DetectDotsOverBackground: empty background");
+  return DetectDotsImpl(image, background, options, rejections, candidates);
 }
 
 namespace {

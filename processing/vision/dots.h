@@ -109,6 +109,15 @@ std::vector<Dot> DetectDots(const cv::Mat& image, const DotOptions& options = {}
                             DotRejections* rejections = nullptr,
                             std::vector<DotCandidate>* candidates = nullptr);
 
+// The same over a known background (same size and type; e.g. the scene without the spots):
+// the signal is image - background instead of the top-hat, so board squares, their edges and
+// corners cancel; saturation and flat tops are read from `image`, greenness (BGR) from the
+// difference (what the spot added). options.background_kernel_px is not used.
+std::vector<Dot> DetectDotsOverBackground(const cv::Mat& image, const cv::Mat& background,
+                                          const DotOptions& options,
+                                          DotRejections* rejections = nullptr,
+                                          std::vector<DotCandidate>* candidates = nullptr);
+
 // Settings for one image from its own data, for spots the defaults miss (small or faint spots,
 // boards of small squares): the top-hat kernel from the board's square size (the largest odd
 // size below 0.8 squares, 5..61 px: a spot smaller than a square survives it, a square does

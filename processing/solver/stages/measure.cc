@@ -114,6 +114,100 @@ std::vector<ImageMeasurement> MeasureImages(
   return out;
 }
 
+// The third dot pass (PipelineOptions::background_dots): every frame of a static group whose
+// dots on its board's plane fall short of `expected` (step 1: differ from it) is measured on
+// its difference from the
+// group without it (per pixel the smallest value over the other images; where the frame holds
+// the group's smallest, the second smallest). Images are read again, each once per group
+// with a short frame; the short frames are then measured `threads` at a time.
+void DotsOverStaticBackground(const std::vector<std::vector<size_t>>& groups,
+                              const std::vector<std::string>& files,
+                              const std::vector<std::vector<vision::BoardSize>>& sizes,
+                              const std::vector<int>& expected,
+                              const std::vector<std::vector<int>>& step1_beams,
+                              const ImageLoader& load, const PipelineOptions& o,
+                              std::vector<ImageMeasurement>* measured) {
+  auto host_of = [&](size_t i) -> const std::optional<vision::CheckerboardDetection>& {
+    const auto& m = (*measured)[i];
+    return sizes[i].size() == 2 ? m.boards[1] : m.boards[0];
+  };
+  // Step 1 shows one dot per listed beam: a surplus there is residue taken for a spot (step 2
+  // surpluses are left to the grouping). A step 1 frame is measured this way only if each of
+  // its beams is blocked in another image of its pose (else the difference removes its spot).
+  auto off_count = [&](size_t i, size_t n) {
+    const size_t want = static_cast<size_t>(expected[i]);
+    return sizes[i].size() == 2 ? (n > want ? n - want : want - n) : (n < want ? want - n : 0);
+  };
+  for (const auto& group : groups) {
+    if (group.size() < 2) continue;
+    std::vector<size_t> short_frames;
+    for (size_t i : group) {
+      if (!host_of(i) || expected[i] <= 0 || off_count(i, (*measured)[i].dots_on_plane) == 0)
+        continue;
+      bool dot_free_views = true;
+      if (i < step1_beams.size())
+        for (int b : step1_beams[i])
+          dot_free_views =
+              dot_free_views && std::any_of(group.begin(), group.end(), [&](size_t j) {
+                return j != i && std::find(step1_beams[j].begin(), step1_beams[j].end(), b) ==
+                                     step1_beams[j].end();
+              });
+      if (dot_free_views) short_frames.push_back(i);
+    }
+    if (short_frames.empty()) continue;
+    cv::Mat lo, lo2;  // per pixel and channel: the smallest and second smallest over the group
+    bool same = true;
+    for (size_t i : group) {
+      const cv::Mat img = load(files[i]);
+      if (img.empty()) throw SolveError(files[i] + ": cannot read the image");
+      if (lo.empty()) {
+        lo = img.clone();
+        lo2 = cv::Mat(img.size(), img.type(),
+                      cv::Scalar::all(img.depth() == CV_16U ? 65535.0 : 255.0));
+        continue;
+      }
+      if (img.size() != lo.size() || img.type() != lo.type()) {
+        same = false;
+        break;
+      }
+      cv::Mat hi;
+      cv::max(lo, img, hi);
+      cv::min(lo2, hi, lo2);
+      cv::min(lo, img, lo);
+    }
+    if (!same) continue;
+    ForEachImage(short_frames.size(), o.image_threads, [&](size_t k) {
+      const size_t i = short_frames[k];
+      const cv::Mat img = load(files[i]);
+      if (img.empty()) throw SolveError(files[i] + ": cannot read the image");
+      cv::Mat background = lo.clone(), holds_min, diff;
+      cv::compare(img, lo, holds_min, cv::CMP_LE);
+      lo2.copyTo(background, holds_min);
+      cv::subtract(img, background, diff);
+      ImageMeasurement& m = (*measured)[i];
+      // Threshold from the difference's own noise (its floor is flat: no top-hat needed).
+      const vision::DotOptions opts =
+          vision::AdaptiveDotOptions(diff, host_of(i)->square_px, o.dots);
+      vision::DotRejections rej;
+      std::vector<vision::Dot> dots = vision::DetectDotsOverBackground(img, background, opts, &rej);
+      RegionRejections region;
+      const size_t found = DotsOnHostPlane(dots, m, sizes[i], o, &region).size();
+      if (off_count(i, found) >= off_count(i, m.dots_on_plane) ||
+          found > static_cast<size_t>(expected[i] + o.max_surplus_dots))
+        return;
+      std::ostringstream what;
+      what << "dots on the frame's difference from its static scene (" << group.size() - 1
+           << " other images): threshold " << opts.threshold_fraction << " of full scale, min "
+           << opts.min_pixels << " px (" << m.dots_on_plane << " -> " << found << " on the plane)";
+      m.dots = std::move(dots);
+      m.dot_rejections = rej;
+      m.adaptive_dots = true;
+      m.dot_settings = what.str();
+      m.dots_on_plane = found;
+    });
+  }
+}
+
 // Refits every dot over a background measured in the other images of its static group (same
 // camera and board placement: all of step 2; step 1 image by sliding pose), where its pixels
 // are dot-free (vision/dots.h). The images are read a second time, `threads` at a time; the
@@ -356,17 +450,24 @@ RecordingMeasurement MeasureRecording(const dataset::Recording& rec, const Image
         expected.push_back(static_cast<int>(
             (f.kind == Step2Kind::kNeutral ? 1 : f.triggers.size()) * f.beams.size()));
       measured = MeasureImages(files, asks, load, o, expected);
+      // Static groups: same camera and board placement (step 1 by sliding pose, all of step 2).
+      std::vector<std::vector<size_t>> static_groups;
+      std::map<int, size_t> group_of_pose;
+      for (size_t i = 0; i < rec.step1.size(); ++i) {
+        auto [it, added] = group_of_pose.emplace(rec.step1[i].pose, static_groups.size());
+        if (added) static_groups.emplace_back();
+        static_groups[it->second].push_back(i);
+      }
+      static_groups.emplace_back();
+      for (size_t i = 0; i < rec.step2.size(); ++i)
+        static_groups.back().push_back(rec.step1.size() + i);
+      if (o.background_dots) {
+        std::vector<std::vector<int>> step1_beams;
+        for (const auto& f : rec.step1) step1_beams.push_back(f.beams);
+        DotsOverStaticBackground(static_groups, files, asks, expected, step1_beams, load, o,
+                                 &measured);
+      }
       if (o.dots.centre == vision::DotCentre::kGaussianFit) {
-        std::vector<std::vector<size_t>> static_groups;
-        std::map<int, size_t> group_of_pose;
-        for (size_t i = 0; i < rec.step1.size(); ++i) {
-          auto [it, added] = group_of_pose.emplace(rec.step1[i].pose, static_groups.size());
-          if (added) static_groups.emplace_back();
-          static_groups[it->second].push_back(i);
-        }
-        static_groups.emplace_back();
-        for (size_t i = 0; i < rec.step2.size(); ++i)
-          static_groups.back().push_back(rec.step1.size() + i);
         RefineDotsOnBackgrounds(static_groups, files, load, o.dots, o.image_threads, &measured);
         int on_background = 0, top_hat = 0, centroid = 0;
         for (const auto& m : measured)
