@@ -3,7 +3,7 @@
 // camera (rendering the rig simulator's scene for the current setup) and a mock Hall MCU (pty),
 // runs a complete calibration session through the real drivers and the orchestrator, then solves
 // (`msmcal solve`), calibrates the Hall sensor (`msmcal hall calibrate`, `msmcal hall predict`) in
-// child processes of this same executable, and prints the Table I/II-style report compared with
+// this process (sessions/results/finish_steps.h), and prints the Table I/II-style report compared with
 // the simulator's truth; the HTML report goes to DIR/report.html.
 // `--guided`: the operator at the rig is prompted on this terminal for every set-up (the guided
 // mode, docs/guided.md): the answers go to a ConsoleOperator in front of the simulated world;

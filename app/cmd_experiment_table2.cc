@@ -11,11 +11,11 @@
 #include <random>
 
 #include "app/command_registry.h"
-#include "app/hall_cal_io.h"
 #include "mocks/rig/rig_simulator.h"
 #include "mocks/rig/truth_io.h"
 #include "processing/hall/calibration.h"
 #include "sessions/interchange/interchange_io.h"
+#include "sessions/results/finish_steps.h"
 
 namespace msmcal::app {
 namespace {
@@ -38,7 +38,8 @@ struct Table2Args {
 
 // Model error alone: every model fitted to noise-free poses with the simulator's exact
 // foreground field (no readings, no interpolation).
-void PrintExactFieldFits(const sim::RigSimulator& simulator, const std::vector<dataset::MirrorPlaneRow>& planes) {
+void PrintExactFieldFits(const sim::RigSimulator& simulator,
+                         const std::vector<dataset::MirrorPlaneRow>& planes) {
   const sim::HallModel& hm = simulator.hall();
   const double delay = simulator.options().hall.delta_t_s;
   const hall::FieldFunction fg = [&](double t) {
@@ -47,33 +48,37 @@ void PrintExactFieldFits(const sim::RigSimulator& simulator, const std::vector<d
   std::vector<hall::PoseSample> poses;
   for (const auto& p : planes) {
     const auto pose = simulator.motion().PoseAt(p.t_s, sim::DriveMode::kScan);
-    poses.push_back({p.t_s, Eigen::Vector3d(pose.alpha_rad * 180 / M_PI, pose.beta_rad * 180 / M_PI, pose.trans_mm)});
+    poses.push_back({p.t_s, Eigen::Vector3d(pose.alpha_rad * 180 / M_PI, pose.beta_rad * 180 / M_PI,
+                                            pose.trans_mm)});
   }
   hall::HallFitOptions o;
   o.fast_frequency_hz = simulator.options().mirror.fast.frequency_hz;
   o.slow_frequency_hz = simulator.options().mirror.slow.frequency_hz;
   o.pattern_period_s = simulator.pattern_period_s();
   std::printf("model error with the exact field (no noise, no readings):\n");
-  for (auto kind : {hall::HallModelKind::kLinear, hall::HallModelKind::kSine, hall::HallModelKind::kQuadratic,
-                    hall::HallModelKind::kCubic}) {
+  for (auto kind : {hall::HallModelKind::kLinear, hall::HallModelKind::kSine,
+                    hall::HallModelKind::kQuadratic, hall::HallModelKind::kCubic}) {
     const auto r = hall::FitHallModel(kind, poses, fg, o);
-    std::printf("  %-10s %.4f deg %.4f deg %.4f mm  dt %.4f ms\n", hall::ToString(kind), r.train_rms[0], r.train_rms[1],
-                r.train_rms[2], r.model.delta_t_s * 1e3);
+    std::printf("  %-10s %.4f deg %.4f deg %.4f mm  dt %.4f ms\n", hall::ToString(kind),
+                r.train_rms[0], r.train_rms[1], r.train_rms[2], r.model.delta_t_s * 1e3);
   }
 }
 
 void RunTable2(const Table2Args& args) {
   const auto t0 = std::chrono::steady_clock::now();
-  HallCalibrationSetup setup;
+  results::HallCalibrationSetup setup;
   double true_delta_t = std::nan("");
   if (!args.from.empty()) {
     const dataset::Recording rec = interchange::ReadRecording(args.from);
-    const auto planes = interchange::ReadMirrorPlanesCsv(fs::path(args.from) / "results" / "mirror_planes.csv");
-    setup = MakeHallCalibrationSetup(rec, planes, args.from);
-    if (fs::exists(fs::path(args.from) / "truth")) true_delta_t = sim::ReadTruth(args.from).hall.delta_t_s;
+    const auto planes =
+        results::ReadMirrorPlanesCsv(fs::path(args.from) / "results" / "mirror_planes.csv");
+    setup = results::MakeHallCalibrationSetup(rec, planes, args.from);
+    if (fs::exists(fs::path(args.from) / "truth"))
+      true_delta_t = sim::ReadTruth(args.from).hall.delta_t_s;
     std::printf("poses: %zu estimated planes from %s\n", planes.size(), args.from.c_str());
   } else {
-    sim::SimOptions options = args.config.empty() ? sim::SimOptions{} : sim::LoadSimOptions(args.config);
+    sim::SimOptions options =
+        args.config.empty() ? sim::SimOptions{} : sim::LoadSimOptions(args.config);
     options.seed = args.seed;
     options.hall.actual_duration_s = args.actual_s;
     options.hall.background_duration_s = args.background_s;
@@ -92,8 +97,10 @@ void RunTable2(const Table2Args& args) {
     if (args.exact_field) {
       PrintExactFieldFits(simulator, truth.mirror_planes);
       // Reconstruction error of the recorded foreground against the exact one.
-      const hall::TimeBase ta = hall::FitTimeBase(rec.hall_actual->clock_edges_us, simulator.pattern_period_s());
-      const hall::TimeBase tb = hall::FitTimeBase(rec.hall_background->clock_edges_us, simulator.pattern_period_s());
+      const hall::TimeBase ta =
+          hall::FitTimeBase(rec.hall_actual->clock_edges_us, simulator.pattern_period_s());
+      const hall::TimeBase tb =
+          hall::FitTimeBase(rec.hall_background->clock_edges_us, simulator.pattern_period_s());
       std::vector<double> t1, t2;
       std::vector<Eigen::Vector3d> b1, b2;
       hall::MapReadings(*rec.hall_actual, ta, &t1, &b1);
@@ -101,12 +108,14 @@ void RunTable2(const Table2Args& args) {
       hall::Foreground fg{hall::PhaseProfile::Build(t1, b1, simulator.pattern_period_s()),
                           hall::PhaseProfile::Build(t2, b2, simulator.pattern_period_s())};
       const double delay = simulator.options().hall.delta_t_s;
-      Eigen::Vector3d ss = Eigen::Vector3d::Zero(), amp = Eigen::Vector3d::Zero(), mean = Eigen::Vector3d::Zero();
+      Eigen::Vector3d ss = Eigen::Vector3d::Zero(), amp = Eigen::Vector3d::Zero(),
+                      mean = Eigen::Vector3d::Zero();
       const int n = 2000;
       std::vector<Eigen::Vector3d> exact(n);
       for (int i = 0; i < n; ++i) {
         const double t = simulator.pattern_period_s() * i / n;
-        exact[i] = simulator.hall().MagnetFieldUT(simulator.motion().PoseAt(t - delay, sim::DriveMode::kScan));
+        exact[i] = simulator.hall().MagnetFieldUT(
+            simulator.motion().PoseAt(t - delay, sim::DriveMode::kScan));
         mean += exact[i] / n;
       }
       for (int i = 0; i < n; ++i) {
@@ -117,22 +126,28 @@ void RunTable2(const Table2Args& args) {
       }
       {
         std::vector<hall::PoseSample> poses;
-        for (const auto& p : truth.mirror_planes) poses.push_back({p.t_s, Eigen::Vector3d(p.alpha_deg, p.beta_deg, p.trans_mm)});
+        for (const auto& p : truth.mirror_planes)
+          poses.push_back({p.t_s, Eigen::Vector3d(p.alpha_deg, p.beta_deg, p.trans_mm)});
         hall::HallFitOptions o;
         o.fast_frequency_hz = simulator.options().mirror.fast.frequency_hz;
         o.slow_frequency_hz = simulator.options().mirror.slow.frequency_hz;
         o.pattern_period_s = simulator.pattern_period_s();
-        const auto r = hall::FitHallModel(hall::HallModelKind::kCubic, poses, [&](double t) { return fg.Value(t); }, o);
-        std::printf("cubic on all readings (no split): %.4f deg %.4f deg %.4f mm dt %.4f ms\n", r.train_rms[0], r.train_rms[1],
-                    r.train_rms[2], r.model.delta_t_s * 1e3);
+        const auto r = hall::FitHallModel(
+            hall::HallModelKind::kCubic, poses, [&](double t) { return fg.Value(t); }, o);
+        std::printf("cubic on all readings (no split): %.4f deg %.4f deg %.4f mm dt %.4f ms\n",
+                    r.train_rms[0], r.train_rms[1], r.train_rms[2], r.model.delta_t_s * 1e3);
       }
-      std::printf("foreground reconstruction: rms error %.3f %.3f %.3f uT, field amplitude %.1f %.1f %.1f uT; time base rate %.2f ppm\n",
-                  std::sqrt(ss[0]), std::sqrt(ss[1]), std::sqrt(ss[2]), amp[0], amp[1], amp[2], ta.RateErrorPpm());
+      std::printf(
+          "foreground reconstruction: rms error %.3f %.3f %.3f uT, field amplitude %.1f %.1f %.1f "
+          "uT; time base rate %.2f ppm\n",
+          std::sqrt(ss[0]), std::sqrt(ss[1]), std::sqrt(ss[2]), amp[0], amp[1], amp[2],
+          ta.RateErrorPpm());
     }
-    setup = MakeHallCalibrationSetup(rec, planes, "simulation");
+    setup = results::MakeHallCalibrationSetup(rec, planes, "simulation");
     true_delta_t = truth.hall.delta_t_s;
-    std::printf("poses: %zu simulated planes (truth + N(0, %.3f deg), N(0, %.3f mm)), seed %llu\n", planes.size(),
-                args.pose_sigma_deg, args.pose_sigma_mm, static_cast<unsigned long long>(args.seed));
+    std::printf("poses: %zu simulated planes (truth + N(0, %.3f deg), N(0, %.3f mm)), seed %llu\n",
+                planes.size(), args.pose_sigma_deg, args.pose_sigma_mm,
+                static_cast<unsigned long long>(args.seed));
   }
   double range[3] = {0, 0, 0};
   for (int k = 0; k < 3; ++k) {
@@ -143,36 +158,53 @@ void RunTable2(const Table2Args& args) {
     }
     range[k] = hi - lo;
   }
-  std::printf("ranges: alpha %.2f deg, beta %.2f deg, trans %.2f mm (paper: 4.37 deg, 17.17 deg, 1.04 mm)\n",
-              range[0], range[1], range[2]);
-  std::printf("readings: actual %zu, background %zu\n", setup.actual.readings.size(), setup.background.readings.size());
+  std::printf(
+      "ranges: alpha %.2f deg, beta %.2f deg, trans %.2f mm (paper: 4.37 deg, 17.17 deg, 1.04 "
+      "mm)\n",
+      range[0], range[1], range[2]);
+  std::printf("readings: actual %zu, background %zu\n", setup.actual.readings.size(),
+              setup.background.readings.size());
   hall::HallCalibrationOptions options;
   options.repetitions = args.repetitions;
   options.seed = args.seed;
   const hall::HallCalibrationResult r = hall::CalibrateHall(setup.Input(), options);
-  std::printf("%s", FormatTableTwo(r, options).c_str());
+  std::printf("%s", results::FormatTableTwo(r, options).c_str());
   for (const auto& m : r.table) {
     if (!std::isnan(true_delta_t))
-      std::printf("dt %-10s %.4f +- %.4f ms (truth %.4f ms, error %.1f us)\n", hall::ToString(m.kind), m.delta_t_mean_s * 1e3,
-                  m.delta_t_std_s * 1e3, true_delta_t * 1e3, (m.delta_t_mean_s - true_delta_t) * 1e6);
+      std::printf("dt %-10s %.4f +- %.4f ms (truth %.4f ms, error %.1f us)\n",
+                  hall::ToString(m.kind), m.delta_t_mean_s * 1e3, m.delta_t_std_s * 1e3,
+                  true_delta_t * 1e3, (m.delta_t_mean_s - true_delta_t) * 1e6);
   }
-  std::printf("time: %.1f s\n", std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+  std::printf("time: %.1f s\n",
+              std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
 }
 
 void AddTable2Command(CLI::App& app) {
-  CLI::App* exp = GetOrAddSubcommand(app, "experiment", "Reproduce the papers' tables on simulated data");
-  auto* cmd = exp->add_subcommand("table2", "MSM paper Table II: Hall models (linear, sine, ours) with dt, 4:1 splits");
+  CLI::App* exp =
+      GetOrAddSubcommand(app, "experiment", "Reproduce the papers' tables on simulated data");
+  auto* cmd = exp->add_subcommand(
+      "table2", "MSM paper Table II: Hall models (linear, sine, ours) with dt, 4:1 splits");
   auto args = std::make_shared<Table2Args>();
-  cmd->add_option("--config", args->config, "simulation config (default: built-in, as config/sim.yaml)")->check(CLI::ExistingFile);
-  cmd->add_option("--from", args->from, "use a solved interchange folder instead of simulating")->check(CLI::ExistingDirectory);
+  cmd->add_option("--config", args->config,
+                  "simulation config (default: built-in, as config/sim.yaml)")
+      ->check(CLI::ExistingFile);
+  cmd->add_option("--from", args->from, "use a solved interchange folder instead of simulating")
+      ->check(CLI::ExistingDirectory);
   cmd->add_option("--seed", args->seed, "simulation and split seed");
   cmd->add_option("--repetitions", args->repetitions, "random splits")->check(CLI::PositiveNumber);
-  cmd->add_option("--pose-sigma-deg", args->pose_sigma_deg, "noise added to true angles when simulating");
-  cmd->add_option("--pose-sigma-mm", args->pose_sigma_mm, "noise added to true translations when simulating");
-  cmd->add_option("--actual-s", args->actual_s, "seconds of the actual Hall recording (paper: 130k readings)");
-  cmd->add_option("--background-s", args->background_s, "seconds of the background recording (paper: 65k readings)");
-  cmd->add_option("--triggers", args->triggers, "trigger poses wanted (paper: 195; the simulator keeps those whose dots stay apart)");
-  cmd->add_flag("--exact-field", args->exact_field, "also fit every model to the simulator's exact field (model error alone)");
+  cmd->add_option("--pose-sigma-deg", args->pose_sigma_deg,
+                  "noise added to true angles when simulating");
+  cmd->add_option("--pose-sigma-mm", args->pose_sigma_mm,
+                  "noise added to true translations when simulating");
+  cmd->add_option("--actual-s", args->actual_s,
+                  "seconds of the actual Hall recording (paper: 130k readings)");
+  cmd->add_option("--background-s", args->background_s,
+                  "seconds of the background recording (paper: 65k readings)");
+  cmd->add_option(
+      "--triggers", args->triggers,
+      "trigger poses wanted (paper: 195; the simulator keeps those whose dots stay apart)");
+  cmd->add_flag("--exact-field", args->exact_field,
+                "also fit every model to the simulator's exact field (model error alone)");
   cmd->callback([args] { RunTable2(*args); });
 }
 

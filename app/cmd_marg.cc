@@ -5,8 +5,6 @@
 // results/marg_calibration.yaml (format msmcal-marg-calibration/1), per sensor:
 //   calibrated = alignment * compensation * (raw - offset)
 // with offset [3], compensation [3x3], alignment [3x3] (rows), plus figures.
-#include <yaml-cpp/yaml.h>
-
 #include <CLI/CLI.hpp>
 #include <array>
 #include <cmath>
@@ -23,6 +21,7 @@
 #include "processing/marg/coverage.h"
 #include "processing/marg/marg_calibration.h"
 #include "sessions/interchange/interchange_io.h"
+#include "sessions/results/marg_calibration_yaml.h"
 
 namespace msmcal::app {
 namespace {
@@ -30,181 +29,9 @@ namespace {
 namespace fs = std::filesystem;
 using interchange::FormatDouble;
 
-constexpr const char* kCalibrationFormat = "msmcal-marg-calibration/1";
 constexpr double kRadToDeg = 180.0 / std::numbers::pi;
-
-struct CalibrationFile {
-  marg::MargCalibration calibration;
-  std::optional<double> field_elevation_deg;
-};
-
-// ---- YAML ---------------------------------------------------------------------------------
-
-void EmitVec(YAML::Emitter& out, const Eigen::Vector3d& v) {
-  out << YAML::Flow << YAML::BeginSeq << FormatDouble(v.x()) << FormatDouble(v.y())
-      << FormatDouble(v.z()) << YAML::EndSeq;
-}
-void EmitMat(YAML::Emitter& out, const Eigen::Matrix3d& m) {
-  out << YAML::BeginSeq;
-  for (int r = 0; r < 3; ++r) EmitVec(out, m.row(r).transpose());
-  out << YAML::EndSeq;
-}
-
-struct ValidationFigures {
-  bool present = false;
-  double cost[3] = {0, 0, 0};  // raw, compensated, aligned-compensated
-  double mag_norm_relative_std = 0;
-};
-
-std::string FormatCalibrationYaml(const CalibrationFile& file, const ValidationFigures& val) {
-  YAML::Emitter out;
-  out << YAML::BeginMap;
-  out << YAML::Key << "format" << YAML::Value << kCalibrationFormat;
-  out << YAML::Key << "model" << YAML::Value
-      << "calibrated = alignment * compensation * (raw - offset)";
-  if (file.field_elevation_deg) {
-    out << YAML::Key << "field_elevation_deg" << YAML::Value
-        << FormatDouble(*file.field_elevation_deg);
-  }
-  out << YAML::Key << "sensors" << YAML::Value << YAML::BeginMap;
-  const std::tuple<const char*, const char*, const std::optional<marg::SensorCalibration>*>
-      sensors[] = {{"accelerometer", "g", &file.calibration.accelerometer},
-                   {"gyroscope", "dps", &file.calibration.gyroscope},
-                   {"magnetometer", "uT", &file.calibration.magnetometer}};
-  for (const auto& [name, unit, cal] : sensors) {
-    if (!cal->has_value()) continue;
-    const marg::SensorCalibration& c = **cal;
-    out << YAML::Key << name << YAML::Value << YAML::BeginMap;
-    out << YAML::Key << "units" << YAML::Value << unit;
-    out << YAML::Key << "offset" << YAML::Value;
-    EmitVec(out, c.offset);
-    out << YAML::Key << "compensation" << YAML::Value;
-    EmitMat(out, c.compensation);
-    out << YAML::Key << "alignment" << YAML::Value;
-    EmitMat(out, c.alignment);
-    out << YAML::Key << "figures" << YAML::Value << YAML::BeginMap;
-    if (std::string(name) != "gyroscope") {
-      out << YAML::Key << "sphere_radius" << YAML::Value << FormatDouble(c.sphere_radius);
-      out << YAML::Key << "ellipsoid_semi_axes" << YAML::Value;
-      EmitVec(out, c.ellipsoid.semi_axes);
-      out << YAML::Key << "ellipsoid_axes_columns" << YAML::Value;
-      EmitMat(out, c.ellipsoid.axes);
-      out << YAML::Key << "ellipsoid_rms_radial_residual" << YAML::Value
-          << FormatDouble(c.ellipsoid_rms_residual);
-      out << YAML::Key << "ellipsoid_inliers" << YAML::Value << c.ellipsoid_inliers;
-      out << YAML::Key << "ellipsoid_samples" << YAML::Value << c.ellipsoid_samples;
-      out << YAML::Key << "ellipsoid_condition_number" << YAML::Value
-          << FormatDouble(c.ellipsoid_condition);
-      out << YAML::Key << "sphere_coverage" << YAML::Value << FormatDouble(c.coverage);
-      out << YAML::Key << "norm_relative_std" << YAML::Value << FormatDouble(c.norm_relative_std);
-      out << YAML::Key << "plane_rms_residual" << YAML::Value << FormatDouble(c.plane_rms_residual);
-      out << YAML::Key << "plane_turn_deg" << YAML::Value << FormatDouble(c.plane_turn_deg);
-    }
-    out << YAML::Key << "alignment_roll_deg" << YAML::Value << FormatDouble(c.alignment_roll_deg);
-    out << YAML::Key << "alignment_pitch_deg" << YAML::Value << FormatDouble(c.alignment_pitch_deg);
-    out << YAML::EndMap;
-    out << YAML::EndMap;
-  }
-  out << YAML::EndMap;
-  if (val.present) {
-    out << YAML::Key << "validation" << YAML::Value << YAML::BeginMap;
-    if (std::isfinite(val.cost[0])) {  // needs the accelerometer
-      out << YAML::Key << "mean_cost_raw" << YAML::Value << FormatDouble(val.cost[0]);
-      out << YAML::Key << "mean_cost_compensated" << YAML::Value << FormatDouble(val.cost[1]);
-      out << YAML::Key << "mean_cost_aligned_compensated" << YAML::Value
-          << FormatDouble(val.cost[2]);
-    }
-    out << YAML::Key << "magnetometer_norm_relative_std" << YAML::Value
-        << FormatDouble(val.mag_norm_relative_std);
-    out << YAML::EndMap;
-  }
-  out << YAML::EndMap;
-  return std::string(out.c_str()) + "\n";
-}
-
-[[noreturn]] void YamlFail(const fs::path& file, const YAML::Node& node, const std::string& what) {
-  const int line = node.IsDefined() ? node.Mark().line + 1 : 0;
-  throw std::runtime_error(file.string() + ":" + std::to_string(line) + ": " + what);
-}
-
-Eigen::Vector3d ReadVec(const fs::path& file, const YAML::Node& parent, const std::string& key,
-                        const std::string& where) {
-  const YAML::Node n = parent[key];
-  if (!n || !n.IsSequence() || n.size() != 3) {
-    YamlFail(file, n ? n : parent, where + "." + key + ": expected a sequence of 3 numbers");
-  }
-  Eigen::Vector3d v;
-  for (int i = 0; i < 3; ++i) {
-    try {
-      v(i) = n[i].as<double>();
-    } catch (const YAML::Exception&) {
-      YamlFail(file, n[i], where + "." + key + "[" + std::to_string(i) + "]: expected a number");
-    }
-  }
-  return v;
-}
-
-CalibrationFile ReadCalibrationYaml(const fs::path& file) {
-  YAML::Node root;
-  try {
-    root = YAML::LoadFile(file.string());
-  } catch (const YAML::BadFile&) {
-    throw std::runtime_error(file.string() + ": cannot open");
-  } catch (const YAML::Exception& e) {
-    throw std::runtime_error(file.string() + ":" + std::to_string(e.mark.line + 1) + ": " + e.msg);
-  }
-  if (!root["format"] || root["format"].as<std::string>("") != kCalibrationFormat) {
-    YamlFail(file, root["format"] ? root["format"] : root,
-             std::string("format: expected '") + kCalibrationFormat + "'");
-  }
-  CalibrationFile out;
-  if (root["field_elevation_deg"])
-    out.field_elevation_deg = root["field_elevation_deg"].as<double>();
-  const YAML::Node sensors = root["sensors"];
-  if (!sensors || !sensors.IsMap()) YamlFail(file, root, "sensors: expected a map");
-  auto read_sensor = [&](const char* name, std::optional<marg::SensorCalibration>* dst) {
-    const YAML::Node s = sensors[name];
-    if (!s) return;
-    const std::string where = std::string("sensors.") + name;
-    marg::SensorCalibration c;
-    // Sequences of sequences: index rows by number.
-    c.offset = ReadVec(file, s, "offset", where);
-    auto mat = [&](const char* key) {
-      const YAML::Node n = s[key];
-      if (!n || !n.IsSequence() || n.size() != 3) {
-        YamlFail(file, n ? n : s, where + "." + key + ": expected 3 rows of 3 numbers");
-      }
-      Eigen::Matrix3d m;
-      for (int r = 0; r < 3; ++r) {
-        const YAML::Node row = n[r];
-        if (!row.IsSequence() || row.size() != 3) {
-          YamlFail(file, row,
-                   where + "." + key + "[" + std::to_string(r) + "]: expected 3 numbers");
-        }
-        for (int k = 0; k < 3; ++k) {
-          try {
-            m(r, k) = row[k].as<double>();
-          } catch (const YAML::Exception&) {
-            YamlFail(file, row[k],
-                     where + "." + key + "[" + std::to_string(r) + "][" + std::to_string(k) +
-                         "]: expected a number");
-          }
-        }
-      }
-      return m;
-    };
-    c.compensation = mat("compensation");
-    c.alignment = mat("alignment");
-    *dst = c;
-  };
-  read_sensor("accelerometer", &out.calibration.accelerometer);
-  read_sensor("gyroscope", &out.calibration.gyroscope);
-  read_sensor("magnetometer", &out.calibration.magnetometer);
-  if (!out.calibration.magnetometer && !out.calibration.accelerometer) {
-    YamlFail(file, sensors, "sensors: neither magnetometer nor accelerometer present");
-  }
-  return out;
-}
+using results::MargCalibrationFile;
+using results::MargValidationFigures;
 
 // ---- shared steps --------------------------------------------------------------------------
 
@@ -217,8 +44,9 @@ double NormRelativeStd(const dataset::MargRecording& rec) {
   return mean > 0 ? std::sqrt(var) / mean : 0;
 }
 
-ValidationFigures Validate(const marg::MargCalibration& cal, const dataset::MargRecording& val) {
-  ValidationFigures f;
+MargValidationFigures Validate(const marg::MargCalibration& cal,
+                               const dataset::MargRecording& val) {
+  MargValidationFigures f;
   f.present = true;
   const marg::Stage stages[] = {marg::Stage::kRaw, marg::Stage::kCompensated,
                                 marg::Stage::kAlignedCompensated};
@@ -280,7 +108,7 @@ void PrintSensorSummary(const marg::MargCalibration& cal) {
   }
 }
 
-void PrintTable1(const ValidationFigures& f) {
+void PrintTable1(const MargValidationFigures& f) {
   std::printf("MARG Table 1 (mean Gauss-Newton cost F(x) on the validation recording)\n");
   std::printf("  %-26s %.4e\n", "raw data", f.cost[0]);
   std::printf("  %-26s %.4e\n", "compensated data", f.cost[1]);
@@ -306,13 +134,13 @@ void RunCalibrate(const CalibrateArgs& args) {
   if (const auto err = options.Validate(); !err.empty())
     throw std::runtime_error("options: " + err);
   const auto res = CalibrateOrThrow(plane, free, options);
-  CalibrationFile file{res.calibration, FieldElevationDeg(res.calibration, free)};
-  ValidationFigures val;
+  MargCalibrationFile file{res.calibration, FieldElevationDeg(res.calibration, free)};
+  MargValidationFigures val;
   if (fs::exists(dir / "marg" / "validation.csv")) {
     val = Validate(res.calibration, interchange::ReadMargCsv(dir / "marg" / "validation.csv"));
   }
   const fs::path out = dir / "results" / "marg_calibration.yaml";
-  interchange::WriteFileAtomically(out, FormatCalibrationYaml(file, val));
+  interchange::WriteFileAtomically(out, results::FormatMargCalibrationYaml(file, val));
   PrintSensorSummary(res.calibration);
   if (val.present && std::isfinite(val.cost[0])) PrintTable1(val);
   std::printf("wrote %s\n", out.string().c_str());
@@ -320,7 +148,7 @@ void RunCalibrate(const CalibrateArgs& args) {
 
 void RunApply(const std::string& cal_file, const std::string& in, const std::string& out,
               const std::string& stage_name) {
-  const CalibrationFile cal = ReadCalibrationYaml(cal_file);
+  const MargCalibrationFile cal = results::ReadMargCalibrationYaml(cal_file);
   marg::Stage stage = marg::Stage::kAlignedCompensated;
   if (stage_name == "raw") stage = marg::Stage::kRaw;
   if (stage_name == "compensated") stage = marg::Stage::kCompensated;
@@ -330,7 +158,7 @@ void RunApply(const std::string& cal_file, const std::string& in, const std::str
 
 void RunAttitude(const std::string& cal_file, const std::string& in, const std::string& out,
                  const std::string& input_kind) {
-  const CalibrationFile cal = ReadCalibrationYaml(cal_file);
+  const MargCalibrationFile cal = results::ReadMargCalibrationYaml(cal_file);
   auto rec = interchange::ReadMargCsv(in);
   if (!rec.has_inertial) {
     throw std::runtime_error(in + ": attitude needs the accelerometer columns (" +
@@ -388,16 +216,17 @@ void RunTable1(const Table1Args& args) {
   cfg.outlier_fraction = args.outlier_fraction;
   const auto sim = sim::SimulateMarg(cfg, args.seed);
   const auto res = CalibrateOrThrow(sim.plane_rotation, sim.free_rotation, {});
-  const ValidationFigures val = Validate(res.calibration, sim.validation);
+  const MargValidationFigures val = Validate(res.calibration, sim.validation);
   if (!args.out.empty()) {
     const fs::path dir(args.out);
     interchange::WriteMargCsv(dir / "marg" / "plane_rotation.csv", sim.plane_rotation);
     interchange::WriteMargCsv(dir / "marg" / "free_rotation.csv", sim.free_rotation);
     interchange::WriteMargCsv(dir / "marg" / "validation.csv", sim.validation);
     sim::WriteMargTruth(dir, sim.truth);
-    CalibrationFile file{res.calibration, FieldElevationDeg(res.calibration, sim.free_rotation)};
+    MargCalibrationFile file{res.calibration,
+                             FieldElevationDeg(res.calibration, sim.free_rotation)};
     interchange::WriteFileAtomically(dir / "results" / "marg_calibration.yaml",
-                                     FormatCalibrationYaml(file, val));
+                                     results::FormatMargCalibrationYaml(file, val));
   }
   std::printf(
       "simulated MARG board, seed %llu: %zu plane-rotation, %zu free-rotation, %zu "

@@ -8,17 +8,18 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
-#include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <sstream>
 
 #include "app/command_registry.h"
-#include "app/solve_options_io.h"
+#include "app/step_output.h"
 #include "mocks/rig/rig_simulator.h"
 #include "processing/solver/diagnostics.h"
 #include "processing/solver/home_frame.h"
 #include "processing/solver/pipeline.h"
 #include "sessions/interchange/interchange_io.h"
+#include "sessions/results/finish_steps.h"
+#include "sessions/results/solve_options_io.h"
 
 namespace msmcal::app {
 namespace {
@@ -34,70 +35,6 @@ struct SolveArgs {
   uint64_t seed = 1;
   bool threads_given = false, seed_given = false;
 };
-
-nlohmann::json SummaryJson(const solver::SolveOutput& out, double solve_time_s) {
-  nlohmann::json j;
-  j["solve_time_s"] = solve_time_s;
-  j["ceres_time_s"] = out.mle.solver_time_s;
-  j["ceres_iterations"] = out.mle.iterations;
-  j["planes_scan"] = out.num_scan_planes;
-  j["planes_fast_only"] = out.num_fast_only_planes;
-  j["planes_neutral"] = out.num_neutral_planes;
-  j["beams"] = out.beams.size();
-  j["mean_spanning_angle_deg"] = out.mean_spanning_angle_deg;
-  j["validation_rms_deg"] = out.rms_validation_deg;
-  j["validation_rms_px"] = out.rms_validation_px;
-  j["baseline_validation_rms_deg"] = out.rms_baseline_deg;
-  j["baseline_validation_rms_px"] = out.rms_baseline_px;
-  j["validation_normalised_rms"] = out.rms_normalised_validation;
-  j["validation_count"] = out.validation.size();
-  j["corner_variance_factor"] = out.mle.corner_variance_factor;
-  j["dot_variance_factor"] = out.mle.dot_variance_factor;
-  // Variance-component estimation: per residual family, the posterior factor that multiplies
-  // its input covariance (corners: (0.1 px)^2; dots: scatter / N) and its redundancy.
-  nlohmann::json fam = nlohmann::json::object();
-  for (int f = 0; f < solver::kNumFamilies; ++f)
-    fam[solver::MleFamilyName(f)] = {{"variance_factor", out.mle.variance_factor[f]},
-                                     {"redundancy", out.mle.redundancy[f]}};
-  j["variance_factors"] = fam;
-  const Eigen::Matrix<double, 6, 1> sd = out.mirror0_cov.diagonal().cwiseSqrt();
-  j["mirror0_sigma"] = {
-      {"rotation_deg", {sd(0) * 180 / M_PI, sd(1) * 180 / M_PI, sd(2) * 180 / M_PI}},
-      {"origin_mm", {sd(3), sd(4), sd(5)}}};
-  double sa = 0, sb = 0, st = 0;
-  for (const auto& r : out.planes) {
-    sa += r.sigma_alpha_deg * r.sigma_alpha_deg;
-    sb += r.sigma_beta_deg * r.sigma_beta_deg;
-    st += r.sigma_trans_mm * r.sigma_trans_mm;
-  }
-  const double n = std::max<double>(1, out.planes.size());
-  j["rms_sigma_alpha_deg"] = std::sqrt(sa / n);
-  j["rms_sigma_beta_deg"] = std::sqrt(sb / n);
-  j["rms_sigma_trans_mm"] = std::sqrt(st / n);
-  nlohmann::json dropped = nlohmann::json::array();
-  for (const auto& d : out.dropped) dropped.push_back({{"file", d.file}, {"reason", d.reason}});
-  j["dropped_frames"] = dropped;
-  j["notes"] = out.notes;
-  const Eigen::Matrix3d r = out.world_from_mirror0.RotationMatrix();
-  j["world_from_mirror0"] = {
-      {"R", {r(0, 0), r(0, 1), r(0, 2), r(1, 0), r(1, 1), r(1, 2), r(2, 0), r(2, 1), r(2, 2)}},
-      {"t",
-       {out.world_from_mirror0.translation.x(), out.world_from_mirror0.translation.y(),
-        out.world_from_mirror0.translation.z()}}};
-  return j;
-}
-
-// Reads the folder's images; each one must be what `msmcal interchange check` accepts (8/16-bit
-// mono or BGR of camera.yaml's image_size), else the solve stops naming the file.
-solver::ImageLoader FolderLoader(const fs::path& dir, const geometry::CameraModel& camera) {
-  return [dir, camera](const std::string& file) {
-    cv::Mat image = cv::imread((dir / file).string(), cv::IMREAD_UNCHANGED);
-    if (image.empty()) return image;  // the solver reports an unreadable image itself
-    if (std::string problem = interchange::ImageProblem(image, camera); !problem.empty())
-      throw solver::SolveError(file + ": " + problem);
-    return image;
-  };
-}
 
 // `msmcal solve DIR --explain FILE`: every board attempt and every candidate blob of one image,
 // with the reason it was kept or refused.
@@ -225,44 +162,9 @@ void RunExplain(const SolveArgs& args, const solver::PipelineOptions& options) {
       m.dots_on_plane, m.dots.size());
 }
 
-// results/detections.csv, results/diagnostics/*.jpg (dropped and partly used frames) and the
-// drop summary with its hint on stderr.
-void WriteDiagnostics(const fs::path& dir, const std::vector<solver::FrameDetection>& detections) {
-  const fs::path results = dir / "results";
-  interchange::WriteFileAtomically(results / "detections.csv",
-                                   solver::FormatDetectionsCsv(detections));
-  const fs::path diag = results / "diagnostics";
-  std::error_code ec;
-  fs::remove_all(diag, ec);
-  int written = 0;
-  for (const auto& d : detections) {
-    if (d.used && !d.partial) continue;
-    const cv::Mat img = cv::imread((dir / d.file).string(), cv::IMREAD_UNCHANGED);
-    if (img.empty()) continue;
-    fs::create_directories(diag);
-    std::string name = d.file;
-    for (char& c : name)
-      if (c == '/' || c == '\\') c = '_';
-    name = name.substr(0, name.rfind('.')) + ".jpg";
-    if (cv::imwrite((diag / name).string(), solver::AnnotateFrame(img, d),
-                    {cv::IMWRITE_JPEG_QUALITY, 85}))
-      ++written;
-  }
-  const solver::DropSummary sum = solver::SummariseDrops(detections);
-  if (sum.dropped > 0 || sum.partial > 0) {
-    std::fprintf(stderr, "frames: %d of %d dropped, %d used in part", sum.dropped, sum.frames,
-                 sum.partial);
-    if (sum.dropped > 0)
-      std::fprintf(stderr, "; most common reason (%d): %s\nhint: %s", sum.common_count,
-                   sum.common_reason.c_str(), sum.hint.c_str());
-    std::fprintf(stderr, "\nper-frame figures: %s; annotated frames (%d): %s\n",
-                 (results / "detections.csv").c_str(), written, diag.c_str());
-  }
-}
-
 solver::PipelineOptions OptionsOf(const SolveArgs& args) {
   solver::PipelineOptions options;
-  if (!args.config.empty()) options = ReadSolveOptions(args.config, options);
+  if (!args.config.empty()) options = results::ReadSolveOptions(args.config, options);
   // The command line wins over the file for what it names.
   if (args.threads_given) options.image_threads = args.threads;
   options.mle.num_threads = args.ceres_threads;
@@ -273,66 +175,10 @@ solver::PipelineOptions OptionsOf(const SolveArgs& args) {
 }
 
 void RunSolve(const SolveArgs& args) {
-  const fs::path dir(args.dir);
   // Settings first: a bad knob is reported before any file of the folder is read.
-  const solver::PipelineOptions options = OptionsOf(args);
-  const dataset::Recording rec = interchange::ReadRecordingForSolve(dir);
-  const fs::path results = dir / "results";
-  interchange::WriteFileAtomically(results / "solve_options.yaml", FormatSolveOptions(options));
-  const auto t0 = std::chrono::steady_clock::now();
-  solver::SolveOutput out;
-  try {
-    out = solver::SolveRecording(rec, FolderLoader(dir, rec.camera), options);
-  } catch (const solver::SolveError& e) {
-    if (e.partial) {
-      for (const auto& d : e.partial->dropped)
-        std::fprintf(stderr, "dropped %s: %s\n", d.file.c_str(), d.reason.c_str());
-      WriteDiagnostics(dir, e.partial->detections);
-    }
-    throw;
-  }
-  const double solve_s =
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  for (const auto& d : out.dropped)
-    std::fprintf(stderr, "dropped %s: %s\n", d.file.c_str(), d.reason.c_str());
-  interchange::WriteMirrorPlanesCsv(results / "mirror_planes.csv", out.planes);
-  interchange::WriteBeamsCsv(results / "beams.csv", out.beams);
-  std::vector<dataset::ValidationRow> rows;
-  std::ostringstream detail;
-  detail << "beam,j,err_px,err_deg,baseline_err_px,baseline_err_deg,predicted_sigma_px,"
-            "normalised_error\n";
-  for (const auto& v : out.validation) {
-    rows.push_back(v.row);
-    detail << v.row.beam << ',' << v.row.j << ',' << interchange::FormatDouble(v.row.err_px) << ','
-           << interchange::FormatDouble(v.row.err_deg) << ','
-           << interchange::FormatDouble(v.baseline.err_px) << ','
-           << interchange::FormatDouble(v.baseline.err_deg) << ','
-           << interchange::FormatDouble(v.predicted_sigma_px) << ','
-           << interchange::FormatDouble(v.normalised_error) << '\n';
-  }
-  interchange::WriteValidationCsv(results / "validation.csv", rows);
-  interchange::WriteFileAtomically(results / "validation_detail.csv", detail.str());
-  // summary.json is shared with other result producers: update our key only.
-  nlohmann::json summary = nlohmann::json::object();
-  const fs::path summary_file = results / "summary.json";
-  if (fs::exists(summary_file)) {
-    std::ifstream in(summary_file);
-    try {
-      summary = nlohmann::json::parse(in);
-    } catch (const std::exception&) {
-      summary = nlohmann::json::object();
-    }
-  }
-  summary["mirror_poses"] = SummaryJson(out, solve_s);
-  interchange::WriteFileAtomically(summary_file, summary.dump(2) + "\n");
-  WriteDiagnostics(dir, out.detections);
-  std::printf(
-      "solved %d scan planes (%d fast-only, %d neutral), %zu beams in %.1f s\n"
-      "validation: proposed %.4f deg RMS (%.3f px), baseline %.4f deg RMS, normalised %.2f, "
-      "mean spanning angle %.1f deg\n",
-      out.num_scan_planes, out.num_fast_only_planes, out.num_neutral_planes, out.beams.size(),
-      solve_s, out.rms_validation_deg, out.rms_validation_px, out.rms_baseline_deg,
-      out.rms_normalised_validation, out.mean_spanning_angle_deg);
+  const results::SolveStepResult r = results::RunSolveStep(args.dir, OptionsOf(args));
+  PrintStepReport(r);
+  if (!r.ok()) throw std::runtime_error(r.error);
 }
 
 struct Table1Args {

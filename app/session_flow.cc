@@ -1,16 +1,16 @@
 #include "app/session_flow.h"
 
-#include <sys/wait.h>
+#include <spdlog/spdlog.h>
 #include <unistd.h>
 #include <yaml-cpp/yaml.h>
 
 #include <cstdio>
-#include <cstdlib>
 #include <ctime>
 #include <fstream>
 #include <sstream>
 #include <stdexcept>
 
+#include "app/step_output.h"
 #include "common/text_io.h"
 #include "drivers/generator/rig_config.h"
 #include "drivers/hall_mcu/hall_mcu_config.h"
@@ -19,57 +19,13 @@
 #include "sessions/orchestrator/console_operator.h"
 #include "sessions/orchestrator/demo_rig.h"
 #include "sessions/orchestrator/preview.h"
+#include "sessions/results/finish_steps.h"
 #include "sessions/store/session_store.h"
 #include "sessions/store/transfer.h"
 
 namespace msmcal::app {
 
 namespace fs = std::filesystem;
-
-std::string ShellQuote(const std::string& s) {
-  std::string q = "'";
-  for (char c : s) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
-  return q + "'";
-}
-
-bool RunSelf(const std::string& args, std::vector<std::string>* notes, bool echo,
-             const fs::path& log_file) {
-  const std::string exe = fs::read_symlink("/proc/self/exe").string();
-  std::string cmd = ShellQuote(exe) + " " + args;
-  if (echo) {
-    std::printf("\n$ msmcal %s\n", args.c_str());
-  } else if (!log_file.empty()) {
-    if (std::FILE* f = std::fopen(log_file.c_str(), "a")) {
-      std::fprintf(f, "$ msmcal %s\n", args.c_str());
-      std::fclose(f);
-    }
-    cmd += " >>" + ShellQuote(log_file.string()) + " 2>&1";
-  } else {
-    cmd += " >/dev/null 2>&1";
-  }
-  std::fflush(stdout);
-  const int rc = std::system(cmd.c_str());
-  const bool ok = rc == 0;
-  if (notes) {
-    std::string note = "msmcal " + args + ": ok";
-    if (!ok) {
-      note = "msmcal " + args + ": FAILED (" +
-             (WIFEXITED(rc) ? "exit status " + std::to_string(WEXITSTATUS(rc))
-                            : "status " + std::to_string(rc)) +
-             ")";
-      // The child's last error line says why (spdlog "[error] ..." or "error: ...").
-      if (!echo && !log_file.empty()) {
-        std::ifstream in(log_file);
-        std::string line, last_error;
-        while (std::getline(in, line))
-          if (line.find("error") != std::string::npos) last_error = line;
-        if (!last_error.empty()) note += ": " + last_error;
-      }
-    }
-    notes->push_back(note);
-  }
-  return ok;
-}
 
 namespace {
 
@@ -245,11 +201,49 @@ LabAcquisitionOptions LabOptionsFromJournal(const fs::path& dir, const std::stri
   return o;
 }
 
+namespace {
+
+// Single-quotes `s` as /bin/sh would need it: the steps are announced as the commands that run
+// them on their own ("msmcal solve '/data/s 1' --threads 2").
+std::string ShellQuote(const std::string& s) {
+  std::string q = "'";
+  for (char c : s) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
+  return q + "'";
+}
+
+// Runs one finish step in-process. With `echo`, prints "$ msmcal <command>" and the step's report
+// as the command would; otherwise both go to `log_file`. Appends "msmcal <command>: ok" or
+// "msmcal <command>: FAILED: <error>" to `notes` (if given). True when the step succeeded.
+template <typename Step>
+bool RunStep(const std::string& command, std::vector<std::string>* notes, bool echo,
+             const fs::path& log_file, Step step) {
+  if (echo) {
+    std::printf("\n$ msmcal %s\n", command.c_str());
+    std::fflush(stdout);
+  } else if (std::FILE* f = std::fopen(log_file.c_str(), "a")) {
+    std::fprintf(f, "$ msmcal %s\n", command.c_str());
+    std::fclose(f);
+  }
+  const results::StepReport report = step();
+  if (echo) {
+    PrintStepReport(report);
+    if (!report.ok()) spdlog::error("{}", report.error);
+  } else {
+    AppendStepReport(report, log_file);
+  }
+  if (notes)
+    notes->push_back("msmcal " + command +
+                     (report.ok() ? std::string(": ok") : ": FAILED: " + report.error));
+  return report.ok();
+}
+
+}  // namespace
+
 FinishResult FinishSession(const fs::path& dir, const FinishOptions& options,
                            std::vector<std::string>* notes) {
   FinishResult r;
   const fs::path results = dir / "results";
-  const fs::path log = dir / "finish_log.txt";  // the children's output when not echoed
+  const fs::path log = dir / "finish_log.txt";  // the steps' output when not echoed
   const std::string d = ShellQuote(dir.string());
   std::unique_ptr<store::SessionStore> journal;
   const store::SystemClock clock;
@@ -267,25 +261,32 @@ FinishResult FinishSession(const fs::path& dir, const FinishOptions& options,
   r.solved = skip(results / "summary.json", "solve");
   if (!r.solved) {
     step("solve", store::StepState::kRunning);
-    r.solved = RunSelf("solve " + d + " --threads " + std::to_string(options.threads), notes,
-                       options.echo, log);
+    solver::PipelineOptions solve;  // as `msmcal solve DIR --threads N` has them
+    solve.image_threads = options.threads;
+    solve.mle.num_threads = 1;
+    r.solved = RunStep("solve " + d + " --threads " + std::to_string(options.threads), notes,
+                       options.echo, log, [&] { return results::RunSolveStep(dir, solve); });
     step("solve", r.solved ? store::StepState::kDone : store::StepState::kFailed);
   }
   if (r.solved) {
     r.hall_calibrated = skip(results / "hall_model.yaml", "hall calibrate");
     if (!r.hall_calibrated) {
       step("hall_calibration", store::StepState::kRunning);
-      r.hall_calibrated = RunSelf("hall calibrate " + d, notes, options.echo, log);
+      r.hall_calibrated = RunStep("hall calibrate " + d, notes, options.echo, log, [&] {
+        return results::RunHallCalibration(dir, hall::HallCalibrationOptions{});
+      });
       if (!r.hall_calibrated) step("hall_calibration", store::StepState::kFailed);
     }
     if (r.hall_calibrated) {
       r.hall_predicted = skip(results / "hall_poses.csv", "hall predict");
+      const fs::path model = results / "hall_model.yaml", readings = dir / "hall" / "actual.csv",
+                     poses = results / "hall_poses.csv";
       if (!r.hall_predicted)
         r.hall_predicted =
-            RunSelf("hall predict " + ShellQuote((results / "hall_model.yaml").string()) + " " +
-                        ShellQuote((dir / "hall" / "actual.csv").string()) + " " +
-                        ShellQuote((results / "hall_poses.csv").string()),
-                    notes, options.echo, log);
+            RunStep("hall predict " + ShellQuote(model.string()) + " " +
+                        ShellQuote(readings.string()) + " " + ShellQuote(poses.string()),
+                    notes, options.echo, log,
+                    [&] { return results::RunHallPrediction(model, readings, poses); });
       step("hall_calibration",
            r.hall_predicted ? store::StepState::kDone : store::StepState::kFailed);
     }

@@ -1,8 +1,8 @@
 #pragma once
 // The parts of a session run shared by `msmcal demo`, `msmcal resume`, `msmcal sweep` and
 // `msmcal replay`: a simulated acquisition on the demo rig (mocks in this process, real drivers),
-// and the steps after acquisition (solve, Hall calibration and prediction) as child processes of
-// this executable, with their results recorded into the session's journal.
+// and the steps after acquisition (solve, Hall calibration and prediction, sessions/results/
+// finish_steps.h) run in this process, with their results recorded into the session's journal.
 
 #include <filesystem>
 #include <functional>
@@ -16,16 +16,6 @@
 #include "sessions/orchestrator/rig_operator.h"
 
 namespace msmcal::app {
-
-// Single-quotes `s` for /bin/sh.
-std::string ShellQuote(const std::string& s);
-
-// Runs this executable with `args` (already quoted); true on exit status 0. With `echo`, prints
-// "$ msmcal <args>" and lets the child print; otherwise the child's output is appended to
-// `log_file` (discarded when empty). Appends "msmcal <args>: ok" or "msmcal <args>: FAILED (exit
-// status N): <the child's last error line from log_file>" to `notes` (if given).
-bool RunSelf(const std::string& args, std::vector<std::string>* notes, bool echo = true,
-             const std::filesystem::path& log_file = {});
 
 struct DemoAcquisitionOptions {
   sim::SimOptions sim;
@@ -84,7 +74,7 @@ dataset::Recording ReadPlanFolder(const std::filesystem::path& dir);
 
 struct FinishOptions {
   bool skip_done = true;  // skip steps whose outputs exist (resume)
-  bool echo = true;       // print the commands and their output; else into DIR/finish_log.txt
+  bool echo = true;  // print each step as its command and its output; else into DIR/finish_log.txt
   int threads = 2;
 };
 struct FinishResult {
@@ -92,8 +82,10 @@ struct FinishResult {
   bool ok() const { return solved && hall_calibrated && hall_predicted; }
 };
 
-// The steps after a written session (session.yaml present): `msmcal solve DIR`,
-// `msmcal hall calibrate DIR`, `msmcal hall predict` (results/hall_poses.csv). With skip_done, a
+// The steps after a written session (session.yaml present), in this process, as
+// `msmcal solve DIR --threads N`, `msmcal hall calibrate DIR` and `msmcal hall predict`
+// (results/hall_poses.csv) run them. `notes` gets "msmcal <command>: ok" or
+// "msmcal <command>: FAILED: <the step's error>" per step run. With skip_done, a
 // step whose output exists (results/summary.json, results/hall_model.yaml,
 // results/hall_poses.csv) is not run again. When the folder has a journal (session.db), the
 // results/ files are stored into it and the steps "solve" / "hall_calibration" recorded.

@@ -18,6 +18,7 @@
 #include <string_view>
 
 #include "common/text_io.h"
+#include "sessions/interchange/csv_reader.h"
 
 namespace msmcal::interchange {
 namespace {
@@ -30,11 +31,6 @@ constexpr const char* kHallHeader = "mcu_time_us,bx_uT,by_uT,bz_uT";
 constexpr const char* kClockHeader = "mcu_time_us";
 constexpr const char* kMargFullHeader = "t_s,ax_g,ay_g,az_g,gx_dps,gy_dps,gz_dps,mx_uT,my_uT,mz_uT";
 constexpr const char* kMargMagHeader = "t_s,mx_uT,my_uT,mz_uT";
-constexpr const char* kMirrorPlanesHeader =
-    "j,t_s,nx,ny,nz,d_mm,alpha_deg,beta_deg,trans_mm,sigma_alpha_deg,sigma_beta_deg,"
-    "sigma_trans_mm";
-constexpr const char* kBeamsHeader = "beam,px,py,pz,vx,vy,vz";
-constexpr const char* kValidationHeader = "beam,j,err_px,err_deg";
 
 // "file:line: what" (line 0: no line).
 [[noreturn]] void Fail(const std::string& file, int line, const std::string& what) {
@@ -117,122 +113,123 @@ void AppendInt(std::string* out, Int v) {
   out->append(buf, ptr);
 }
 
+std::string NormaliseHeader(std::string_view line) {
+  std::string out;
+  size_t start = 0;
+  while (true) {
+    size_t comma = line.find(',', start);
+    if (!out.empty() || start > 0) out += ',';
+    out += Trim(line.substr(start, comma - start));
+    if (comma == std::string_view::npos) break;
+    start = comma + 1;
+  }
+  // Tolerate a UTF-8 byte-order mark written by spreadsheet tools.
+  if (out.rfind("\xEF\xBB\xBF", 0) == 0) out.erase(0, 3);
+  return out;
+}
+
+}  // namespace
+
 // ------------------------------------------------------------------------------------------ CSV
 
-// Reads a CSV file whose first line is one of `headers`; rows are split on ',' and must have
-// the header's number of cells. Empty lines are skipped; '\r' before '\n' is accepted.
-class CsvReader {
- public:
-  CsvReader(const fs::path& path, std::string display, const std::vector<const char*>& headers)
-      : display_(std::move(display)), text_(ReadWholeFile(path, display_)) {
-    if (!NextLine()) {
-      Fail(display_, 1, "empty file, expected header " + Quote(headers.front()));
+CsvReader::CsvReader(const fs::path& path, std::string display,
+                     const std::vector<const char*>& headers)
+    : display_(std::move(display)), text_(ReadWholeFile(path, display_)) {
+  if (!NextLine()) {
+    Fail(display_, 1, "empty file, expected header " + Quote(headers.front()));
+  }
+  const std::string got = NormaliseHeader(line_text_);
+  for (size_t i = 0; i < headers.size(); ++i) {
+    if (got == headers[i]) {
+      header_index_ = static_cast<int>(i);
+      break;
     }
-    const std::string got = NormaliseHeader(line_text_);
-    for (size_t i = 0; i < headers.size(); ++i) {
-      if (got == headers[i]) {
-        header_index_ = static_cast<int>(i);
-        break;
-      }
-    }
-    if (header_index_ < 0) {
-      std::string expected = Quote(headers[0]);
-      for (size_t i = 1; i < headers.size(); ++i) expected += " or " + Quote(headers[i]);
-      Fail(display_, line_, "header is " + Quote(got) + " but expected " + expected);
-    }
-    std::string_view h = headers[header_index_];
+  }
+  if (header_index_ < 0) {
+    std::string expected = Quote(headers[0]);
+    for (size_t i = 1; i < headers.size(); ++i) expected += " or " + Quote(headers[i]);
+    Fail(display_, line_, "header is " + Quote(got) + " but expected " + expected);
+  }
+  std::string_view h = headers[header_index_];
+  size_t start = 0;
+  while (true) {
+    size_t comma = h.find(',', start);
+    columns_.emplace_back(h.substr(start, comma - start));
+    if (comma == std::string_view::npos) break;
+    start = comma + 1;
+  }
+}
+
+bool CsvReader::Next() {
+  while (NextLine()) {
+    if (Trim(line_text_).empty()) continue;
+    cells_.clear();
     size_t start = 0;
     while (true) {
-      size_t comma = h.find(',', start);
-      columns_.emplace_back(h.substr(start, comma - start));
+      size_t comma = line_text_.find(',', start);
+      cells_.push_back(line_text_.substr(start, comma - start));
       if (comma == std::string_view::npos) break;
       start = comma + 1;
     }
-  }
-
-  int header_index() const { return header_index_; }
-  int line() const { return line_; }
-  const std::string& display() const { return display_; }
-
-  // Advances to the next non-empty row; false at the end of the file.
-  bool Next() {
-    while (NextLine()) {
-      if (Trim(line_text_).empty()) continue;
-      cells_.clear();
-      size_t start = 0;
-      while (true) {
-        size_t comma = line_text_.find(',', start);
-        cells_.push_back(line_text_.substr(start, comma - start));
-        if (comma == std::string_view::npos) break;
-        start = comma + 1;
-      }
-      if (cells_.size() != columns_.size()) {
-        Fail(display_, line_,
-             "expected " + std::to_string(columns_.size()) + " cells (" + Quote(HeaderText()) +
-                 ") but got " + std::to_string(cells_.size()));
-      }
-      return true;
-    }
-    return false;
-  }
-
-  double Double(size_t i) const {
-    double v;
-    if (!ParseDouble(cells_[i], &v)) {
-      Fail(display_, line_, "column " + Quote(columns_[i]) + ": " + NotANumber(cells_[i]));
-    }
-    return v;
-  }
-  template <typename Int>
-  Int Integer(size_t i) const {
-    Int v;
-    if (!ParseInt(cells_[i], &v)) {
+    if (cells_.size() != columns_.size()) {
       Fail(display_, line_,
-           "column " + Quote(columns_[i]) + ": " + Quote(Trim(cells_[i])) + " is not an integer");
+           "expected " + std::to_string(columns_.size()) + " cells (" + Quote(HeaderText()) +
+               ") but got " + std::to_string(cells_.size()));
     }
-    return v;
-  }
-
- private:
-  static std::string NormaliseHeader(std::string_view line) {
-    std::string out;
-    size_t start = 0;
-    while (true) {
-      size_t comma = line.find(',', start);
-      if (!out.empty() || start > 0) out += ',';
-      out += Trim(line.substr(start, comma - start));
-      if (comma == std::string_view::npos) break;
-      start = comma + 1;
-    }
-    // Tolerate a UTF-8 byte-order mark written by spreadsheet tools.
-    if (out.rfind("\xEF\xBB\xBF", 0) == 0) out.erase(0, 3);
-    return out;
-  }
-  std::string HeaderText() const {
-    std::string h;
-    for (size_t i = 0; i < columns_.size(); ++i) h += (i ? "," : "") + columns_[i];
-    return h;
-  }
-  bool NextLine() {
-    if (pos_ >= text_.size()) return false;
-    size_t nl = text_.find('\n', pos_);
-    size_t end = nl == std::string::npos ? text_.size() : nl;
-    line_text_ = std::string_view(text_).substr(pos_, end - pos_);
-    if (!line_text_.empty() && line_text_.back() == '\r') line_text_.remove_suffix(1);
-    pos_ = nl == std::string::npos ? text_.size() : nl + 1;
-    ++line_;
     return true;
   }
+  return false;
+}
 
-  std::string display_;
-  std::string text_;
-  size_t pos_ = 0;
-  int line_ = 0;
-  std::string_view line_text_;
-  int header_index_ = -1;
-  std::vector<std::string> columns_;
-  std::vector<std::string_view> cells_;
-};
+double CsvReader::Double(size_t i) const {
+  double v;
+  if (!ParseDouble(cells_[i], &v)) {
+    Fail(display_, line_, "column " + Quote(columns_[i]) + ": " + NotANumber(cells_[i]));
+  }
+  return v;
+}
+
+namespace {
+
+template <typename Int>
+Int CellInteger(const std::string& display, int line, const std::string& column,
+                std::string_view cell) {
+  Int v;
+  if (!ParseInt(cell, &v)) {
+    Fail(display, line,
+         "column " + Quote(column) + ": " + Quote(Trim(cell)) + " is not an integer");
+  }
+  return v;
+}
+
+}  // namespace
+
+int CsvReader::Int(size_t i) const {
+  return CellInteger<int>(display_, line_, columns_[i], cells_[i]);
+}
+
+long long CsvReader::Int64(size_t i) const {
+  return CellInteger<long long>(display_, line_, columns_[i], cells_[i]);
+}
+
+std::string CsvReader::HeaderText() const {
+  std::string h;
+  for (size_t i = 0; i < columns_.size(); ++i) h += (i ? "," : "") + columns_[i];
+  return h;
+}
+
+bool CsvReader::NextLine() {
+  if (pos_ >= text_.size()) return false;
+  size_t nl = text_.find('\n', pos_);
+  size_t end = nl == std::string::npos ? text_.size() : nl;
+  line_text_ = std::string_view(text_).substr(pos_, end - pos_);
+  if (!line_text_.empty() && line_text_.back() == '\r') line_text_.remove_suffix(1);
+  pos_ = nl == std::string::npos ? text_.size() : nl + 1;
+  ++line_;
+  return true;
+}
+
+namespace {
 
 std::vector<dataset::HallReading> ReadHallReadings(const fs::path& path,
                                                    const std::string& display) {
@@ -1105,89 +1102,6 @@ dataset::MargRecording ReadMargCsv(const std::filesystem::path& file) {
 
 void WriteMargCsv(const std::filesystem::path& file, const dataset::MargRecording& recording) {
   WriteFileAtomically(file, FormatMarg(recording));
-}
-
-std::vector<dataset::MirrorPlaneRow> ReadMirrorPlanesCsv(const std::filesystem::path& file) {
-  CsvReader csv(file, file.string(), {kMirrorPlanesHeader});
-  std::vector<dataset::MirrorPlaneRow> rows;
-  while (csv.Next()) {
-    dataset::MirrorPlaneRow r;
-    r.j = csv.Integer<int>(0);
-    r.t_s = csv.Double(1);
-    r.plane_in_world.n = Eigen::Vector3d(csv.Double(2), csv.Double(3), csv.Double(4));
-    r.plane_in_world.d = csv.Double(5);
-    r.alpha_deg = csv.Double(6);
-    r.beta_deg = csv.Double(7);
-    r.trans_mm = csv.Double(8);
-    r.sigma_alpha_deg = csv.Double(9);
-    r.sigma_beta_deg = csv.Double(10);
-    r.sigma_trans_mm = csv.Double(11);
-    rows.push_back(r);
-  }
-  return rows;
-}
-
-void WriteMirrorPlanesCsv(const std::filesystem::path& file,
-                          const std::vector<dataset::MirrorPlaneRow>& rows) {
-  std::string out = std::string(kMirrorPlanesHeader) + "\n";
-  for (const auto& r : rows) {
-    AppendInt(&out, r.j);
-    out += ',';
-    const auto& n = r.plane_in_world.n;
-    AppendRow(&out, {r.t_s, n.x(), n.y(), n.z(), r.plane_in_world.d, r.alpha_deg, r.beta_deg,
-                     r.trans_mm, r.sigma_alpha_deg, r.sigma_beta_deg, r.sigma_trans_mm});
-  }
-  WriteFileAtomically(file, out);
-}
-
-std::vector<dataset::BeamRow> ReadBeamsCsv(const std::filesystem::path& file) {
-  CsvReader csv(file, file.string(), {kBeamsHeader});
-  std::vector<dataset::BeamRow> rows;
-  while (csv.Next()) {
-    dataset::BeamRow r;
-    r.beam = csv.Integer<int>(0);
-    r.p = Eigen::Vector3d(csv.Double(1), csv.Double(2), csv.Double(3));
-    r.v = Eigen::Vector3d(csv.Double(4), csv.Double(5), csv.Double(6));
-    rows.push_back(r);
-  }
-  return rows;
-}
-
-void WriteBeamsCsv(const std::filesystem::path& file, const std::vector<dataset::BeamRow>& rows) {
-  std::string out = std::string(kBeamsHeader) + "\n";
-  for (const auto& r : rows) {
-    AppendInt(&out, r.beam);
-    out += ',';
-    AppendRow(&out, {r.p.x(), r.p.y(), r.p.z(), r.v.x(), r.v.y(), r.v.z()});
-  }
-  WriteFileAtomically(file, out);
-}
-
-std::vector<dataset::ValidationRow> ReadValidationCsv(const std::filesystem::path& file) {
-  CsvReader csv(file, file.string(), {kValidationHeader});
-  std::vector<dataset::ValidationRow> rows;
-  while (csv.Next()) {
-    dataset::ValidationRow r;
-    r.beam = csv.Integer<int>(0);
-    r.j = csv.Integer<int>(1);
-    r.err_px = csv.Double(2);
-    r.err_deg = csv.Double(3);
-    rows.push_back(r);
-  }
-  return rows;
-}
-
-void WriteValidationCsv(const std::filesystem::path& file,
-                        const std::vector<dataset::ValidationRow>& rows) {
-  std::string out = std::string(kValidationHeader) + "\n";
-  for (const auto& r : rows) {
-    AppendInt(&out, r.beam);
-    out += ',';
-    AppendInt(&out, r.j);
-    out += ',';
-    AppendRow(&out, {r.err_px, r.err_deg});
-  }
-  WriteFileAtomically(file, out);
 }
 
 }  // namespace msmcal::interchange

@@ -62,15 +62,7 @@ void WriteHallReadingsCsv(const std::filesystem::path& file,
 dataset::MargRecording ReadMargCsv(const std::filesystem::path& file);
 void WriteMargCsv(const std::filesystem::path& file, const dataset::MargRecording& recording);
 
-// results/ files.
-std::vector<dataset::MirrorPlaneRow> ReadMirrorPlanesCsv(const std::filesystem::path& file);
-void WriteMirrorPlanesCsv(const std::filesystem::path& file,
-                          const std::vector<dataset::MirrorPlaneRow>& rows);
-std::vector<dataset::BeamRow> ReadBeamsCsv(const std::filesystem::path& file);
-void WriteBeamsCsv(const std::filesystem::path& file, const std::vector<dataset::BeamRow>& rows);
-std::vector<dataset::ValidationRow> ReadValidationCsv(const std::filesystem::path& file);
-void WriteValidationCsv(const std::filesystem::path& file,
-                        const std::vector<dataset::ValidationRow>& rows);
+// results/ files: sessions/results/results_files.h.
 
 // Writes `contents` to `file` atomically: temporary in the same folder, fsync, rename, fsync of
 // the folder. Creates parent folders.

@@ -1,13 +1,9 @@
 #include "sessions/orchestrator/report.h"
 
-#include <yaml-cpp/yaml.h>
-
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
-#include <fstream>
 #include <map>
-#include <nlohmann/json.hpp>
 #include <optional>
 #include <sstream>
 #include <stdexcept>
@@ -16,7 +12,7 @@
 #include "processing/geometry/mirror_frame.h"
 #include "processing/geometry/plane_line.h"
 #include "processing/solver/home_frame.h"
-#include "sessions/interchange/interchange_io.h"
+#include "sessions/results/results_files.h"
 #include "sessions/store/session_store.h"
 
 namespace msmcal::orchestrator {
@@ -44,39 +40,6 @@ std::string Escape(const std::string& s) {
       o += c;
   }
   return o;
-}
-
-// Rows of a CSV with a header; columns by name.
-std::vector<std::map<std::string, double>> ReadNumericCsv(const fs::path& file) {
-  std::ifstream in(file);
-  if (!in) throw std::runtime_error(file.string() + ": cannot open");
-  std::string line;
-  std::getline(in, line);
-  std::vector<std::string> names;
-  {
-    std::stringstream ss(line);
-    std::string n;
-    while (std::getline(ss, n, ',')) names.push_back(n);
-  }
-  std::vector<std::map<std::string, double>> rows;
-  int lineno = 1;
-  while (std::getline(in, line)) {
-    ++lineno;
-    if (line.empty()) continue;
-    std::stringstream ss(line);
-    std::string cell;
-    std::map<std::string, double> row;
-    for (size_t k = 0; k < names.size() && std::getline(ss, cell, ','); ++k) {
-      try {
-        row[names[k]] = std::stod(cell);
-      } catch (const std::exception&) {
-        throw std::runtime_error(file.string() + ":" + std::to_string(lineno) + ": column '" +
-                                 names[k] + "': not a number: '" + cell + "'");
-      }
-    }
-    rows.push_back(std::move(row));
-  }
-  return rows;
 }
 
 double Rms(const std::vector<double>& v) {
@@ -203,20 +166,16 @@ SessionReport BuildSessionReport(const fs::path& dir,
   // Table I: planes vs truth, validation.
   if (fs::exists(res / "mirror_planes.csv") && fs::exists(res / "summary.json")) {
     rep.have_planes = true;
-    const auto planes = interchange::ReadMirrorPlanesCsv(res / "mirror_planes.csv");
+    const auto planes = results::ReadMirrorPlanesCsv(res / "mirror_planes.csv");
     rep.planes = static_cast<int>(planes.size());
-    std::ifstream in(res / "summary.json");
-    const nlohmann::json all = nlohmann::json::parse(in);
-    if (!all.contains("mirror_poses"))
-      throw std::runtime_error((res / "summary.json").string() + ": no 'mirror_poses' key");
-    const auto& s = all["mirror_poses"];
-    rep.validation_rms_deg = s.value("validation_rms_deg", 0.0);
-    rep.validation_rms_px = s.value("validation_rms_px", 0.0);
-    rep.baseline_rms_deg = s.value("baseline_validation_rms_deg", 0.0);
-    rep.baseline_rms_px = s.value("baseline_validation_rms_px", 0.0);
-    rep.normalised_validation_rms = s.value("validation_normalised_rms", 0.0);
-    rep.mean_spanning_angle_deg = s.value("mean_spanning_angle_deg", 0.0);
-    rep.validation_count = s.value("validation_count", 0);
+    const results::MirrorPosesSummary s = results::ReadMirrorPosesSummary(res / "summary.json");
+    rep.validation_rms_deg = s.validation_rms_deg;
+    rep.validation_rms_px = s.validation_rms_px;
+    rep.baseline_rms_deg = s.baseline_validation_rms_deg;
+    rep.baseline_rms_px = s.baseline_validation_rms_px;
+    rep.normalised_validation_rms = s.validation_normalised_rms;
+    rep.mean_spanning_angle_deg = s.mean_spanning_angle_deg;
+    rep.validation_count = s.validation_count;
     if (have_truth) {
       std::map<int, dataset::MirrorPlaneRow> by_j;
       for (const auto& r : truth.mirror_planes) by_j[r.j] = r;
@@ -259,14 +218,13 @@ SessionReport BuildSessionReport(const fs::path& dir,
                               {dots}, /*y_down=*/true));
     }
     if (fs::exists(res / "validation_detail.csv")) {
-      const auto rows = ReadNumericCsv(res / "validation_detail.csv");
+      const auto rows = results::ReadValidationDetailCsv(res / "validation_detail.csv");
       std::vector<double> err;
       PlotSeries sc{"validation dots", {}, {}, false, "#9467bd"};
       for (const auto& r : rows) {
-        const double e = r.count("err_px") ? r.at("err_px") : 0;
-        err.push_back(e);
-        sc.x.push_back(r.count("predicted_sigma_px") ? r.at("predicted_sigma_px") : 0);
-        sc.y.push_back(e);
+        err.push_back(r.err_px);
+        sc.x.push_back(r.predicted_sigma_px);
+        sc.y.push_back(r.err_px);
       }
       plots.push_back(
           SvgHistogram("Validation-beam residuals (proposed model)", "error (px)", err, 20));
@@ -285,27 +243,14 @@ SessionReport BuildSessionReport(const fs::path& dir,
   const fs::path hall_yaml = res / "hall_model.yaml";
   if (fs::exists(hall_yaml)) {
     rep.have_hall = true;
-    YAML::Node y;
-    try {
-      y = YAML::LoadFile(hall_yaml.string());
-      rep.hall_model = y["model"].as<std::string>();
-      rep.delta_t_s = y["delta_t_s"].as<double>();
-      if (y["test_rms"]) {
-        const YAML::Node tr = y["test_rms"];
-        const char* keys[3] = {"alpha_deg", "beta_deg", "trans_mm"};
-        for (int k = 0; k < 3; ++k) {
-          if (tr.IsSequence() && tr.size() == 3)
-            rep.test_rms[k] = tr[k].as<double>();
-          else if (tr.IsMap() && tr[keys[k]])
-            rep.test_rms[k] = tr[keys[k]].as<double>();
-        }
-      }
-    } catch (const YAML::Exception& e) {
-      throw std::runtime_error(hall_yaml.string() + ": " + e.what());
-    }
+    const results::HallModelFile model = results::ReadHallModelYaml(hall_yaml);
+    rep.hall_model = hall::ToString(model.model.kind);
+    rep.delta_t_s = model.model.delta_t_s;
+    if (model.test_rms)
+      for (int k = 0; k < 3; ++k) rep.test_rms[k] = (*model.test_rms)[k];
     rep.delta_t_truth_s = truth.hall.delta_t_s;
     if (have_truth && fs::exists(res / "hall_poses.csv") && !truth.pose_trajectory.empty()) {
-      const auto rows = ReadNumericCsv(res / "hall_poses.csv");
+      const auto rows = results::ReadHallPosesCsv(res / "hall_poses.csv");
       const double period = truth.hall.pattern_period_s > 0 ? truth.hall.pattern_period_s
                                                             : truth.pose_trajectory.back().t_s;
       // The true trajectory in the convention the Hall model was trained in (the solver's {0},
@@ -333,15 +278,15 @@ SessionReport BuildSessionReport(const fs::path& dir,
             tb.y.push_back(p.beta_deg);
       for (size_t i = 0; i < rows.size(); ++i) {
         const auto& r = rows[i];
-        double ph = std::fmod(r.at("t_s"), period);
+        double ph = std::fmod(r.t_s, period);
         if (ph < 0) ph += period;
         const size_t k = std::min(tr.size() - 1, static_cast<size_t>(std::lround(ph / dt)));
-        ea.push_back(r.at("alpha_deg") - tr[k].alpha_deg);
-        eb.push_back(r.at("beta_deg") - tr[k].beta_deg);
-        et.push_back(r.at("trans_mm") - tr[k].trans_mm);
+        ea.push_back(r.alpha_deg - tr[k].alpha_deg);
+        eb.push_back(r.beta_deg - tr[k].beta_deg);
+        et.push_back(r.trans_mm - tr[k].trans_mm);
         if (i % 7 == 0 && pa.x.size() < 600) {
-          pa.x.push_back(ph), pa.y.push_back(r.at("alpha_deg"));
-          pb.x.push_back(ph), pb.y.push_back(r.at("beta_deg"));
+          pa.x.push_back(ph), pa.y.push_back(r.alpha_deg);
+          pb.x.push_back(ph), pb.y.push_back(r.beta_deg);
         }
       }
       rep.have_hall_vs_truth = !ea.empty();

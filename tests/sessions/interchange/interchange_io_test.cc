@@ -15,6 +15,7 @@
 #include <regex>
 #include <sstream>
 
+#include "sessions/results/results_files.h"
 #include "tests/testing/test_files.h"
 
 namespace msmcal::interchange {
@@ -677,6 +678,7 @@ TEST(InterchangeFilesTest, MargBothColumnSetsRoundTrip) {
   }
 }
 
+// The results/ CSVs (sessions/results) with the interchange format's number round trip.
 TEST(InterchangeFilesTest, ResultsCsvsRoundTrip) {
   TempDir tmp;
   Doubles d(9);
@@ -693,8 +695,8 @@ TEST(InterchangeFilesTest, ResultsCsvsRoundTrip) {
     p.sigma_beta_deg = d.Next();
     p.sigma_trans_mm = d.Next();
   }
-  WriteMirrorPlanesCsv(tmp.path() / "results/mirror_planes.csv", planes);
-  const auto planes2 = ReadMirrorPlanesCsv(tmp.path() / "results/mirror_planes.csv");
+  results::WriteMirrorPlanesCsv(tmp.path() / "results/mirror_planes.csv", planes);
+  const auto planes2 = results::ReadMirrorPlanesCsv(tmp.path() / "results/mirror_planes.csv");
   ASSERT_EQ(planes.size(), planes2.size());
   for (size_t i = 0; i < planes.size(); ++i) {
     EXPECT_EQ(planes[i].j, planes2[i].j);
@@ -720,8 +722,8 @@ TEST(InterchangeFilesTest, ResultsCsvsRoundTrip) {
     b.p = Eigen::Vector3d(d.Next(), d.Next(), d.Next());
     b.v = Eigen::Vector3d(d.Next(), d.Next(), d.Next());
   }
-  WriteBeamsCsv(tmp.path() / "beams.csv", beams);
-  const auto beams2 = ReadBeamsCsv(tmp.path() / "beams.csv");
+  results::WriteBeamsCsv(tmp.path() / "beams.csv", beams);
+  const auto beams2 = results::ReadBeamsCsv(tmp.path() / "beams.csv");
   ASSERT_EQ(beams2.size(), beams.size());
   for (size_t i = 0; i < beams.size(); ++i) {
     EXPECT_EQ(beams[i].beam, beams2[i].beam);
@@ -732,10 +734,10 @@ TEST(InterchangeFilesTest, ResultsCsvsRoundTrip) {
   }
 
   std::vector<dataset::ValidationRow> val = {{3, 0, 0.25, 1e-3}, {3, 7, -0.0, 12.5}};
-  WriteValidationCsv(tmp.path() / "validation.csv", val);
+  results::WriteValidationCsv(tmp.path() / "validation.csv", val);
   EXPECT_EQ(Slurp(tmp.path() / "validation.csv"),
             "beam,j,err_px,err_deg\n3,0,0.25,0.001\n3,7,-0,12.5\n");
-  const auto val2 = ReadValidationCsv(tmp.path() / "validation.csv");
+  const auto val2 = results::ReadValidationCsv(tmp.path() / "validation.csv");
   ASSERT_EQ(val2.size(), 2u);
   EXPECT_TRUE(Same(val2[1].err_px, -0.0));
   EXPECT_EQ(val2[1].j, 7);

@@ -21,6 +21,7 @@
 #include "sessions/orchestrator/demo_rig.h"
 #include "sessions/orchestrator/quality_gate.h"
 #include "sessions/orchestrator/report.h"
+#include "sessions/results/results_files.h"
 #include "sessions/store/session_store.h"
 #include "tests/testing/tiny_sim.h"
 
@@ -160,12 +161,9 @@ TEST(Orchestrator, RunsACompleteSessionThroughTheMocksAndTheSolverRecoversTruth)
   EXPECT_LT(rms_deg, 0.2) << "plane normal RMS vs truth";
   // The report reads the same figures back from results/ and truth/.
   sim::WriteTruth(dir, sim::MakeTruth(rig.sim()));
-  interchange::WriteMirrorPlanesCsv(dir / "results" / "mirror_planes.csv", out.planes);
-  interchange::WriteFileAtomically(
-      dir / "results" / "summary.json",
-      "{\"mirror_poses\": {\"validation_rms_deg\": " +
-          interchange::FormatDouble(out.rms_validation_deg) +
-          ", \"validation_count\": " + std::to_string(out.validation.size()) + "}}\n");
+  results::WriteMirrorPlanesCsv(dir / "results" / "mirror_planes.csv", out.planes);
+  results::WriteMirrorPosesSummary(dir / "results" / "summary.json",
+                                   results::SummariseSolve(out, /*solve_time_s=*/1.0));
   const SessionReport report = BuildSessionReport(dir, progress);
   EXPECT_TRUE(report.have_planes);
   EXPECT_EQ(report.planes, static_cast<int>(out.planes.size()));

@@ -83,7 +83,7 @@ dataset::Recording MakeFolder(const fs::path& dir) {
   marg.samples.push_back({0.5, 0, 0, 0, 0, 0, 0, 1, 2, 3});
   r.marg_validation = marg;
   interchange::WriteRecording(dir, r);
-  interchange::WriteBeamsCsv(dir / "results/beams.csv", {{1, {1, 2, 3}, {0, 0, 1}}});
+  Spit(dir / "results/beams.csv", "beam,px,py,pz,vx,vy,vz\n1,1,2,3,0,0,1\n");
   Spit(dir / "results/summary.json", "{\"validation\": {\"rms_px\": 0.375}}\n");
   Spit(dir / "truth/planes.csv", "j,nx\n0,1\n");
   return r;

@@ -1,4 +1,4 @@
-#include "app/solve_options_io.h"
+#include "sessions/results/solve_options_io.h"
 
 #include <yaml-cpp/yaml.h>
 
@@ -13,7 +13,7 @@
 
 #include "common/text_io.h"
 
-namespace msmcal::app {
+namespace msmcal::results {
 namespace {
 
 using Ref = std::variant<double*, int*, bool*, uint64_t*, vision::DotCentre*>;
@@ -226,4 +226,4 @@ std::string FormatSolveOptions(const solver::PipelineOptions& options) {
   return s.str();
 }
 
-}  // namespace msmcal::app
+}  // namespace msmcal::results

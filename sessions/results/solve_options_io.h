@@ -11,7 +11,7 @@
 
 #include "processing/solver/pipeline.h"
 
-namespace msmcal::app {
+namespace msmcal::results {
 
 // Reads `path` over `defaults` (keys absent from the file keep their default).
 solver::PipelineOptions ReadSolveOptions(const std::string& path,
@@ -19,4 +19,4 @@ solver::PipelineOptions ReadSolveOptions(const std::string& path,
 // The YAML text of `options`, every knob, commented with its meaning.
 std::string FormatSolveOptions(const solver::PipelineOptions& options);
 
-}  // namespace msmcal::app
+}  // namespace msmcal::results

@@ -1,0 +1,122 @@
+#pragma once
+// Typed readers and writers of a session folder's results/ (../shared/docs/interchange-format.md,
+// "results/"): the solver's mirror_planes.csv, beams.csv, validation.csv, validation_detail.csv
+// and its "mirror_poses" key of summary.json; the Hall calibration's hall_model.yaml and the
+// predictor's hall_poses.csv. These files are a contract with other tools: the writers produce
+// exactly the bytes they always have (numbers in the shortest round-trip form), the readers are
+// strict (interchange::CsvReader: fixed header, every cell a finite number).
+//
+// Errors: readers throw interchange::InterchangeError naming the file and the line and column
+// (CSV: "results/hall_poses.csv:12: column 't_s': 'x' is not a number") or the key (JSON/YAML:
+// "results/summary.json: mirror_poses.validation_rms_deg: missing"). Writers replace the file
+// atomically and throw std::runtime_error naming it.
+
+#include <Eigen/Core>
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "processing/dataset/recording.h"
+#include "processing/hall/calibration.h"
+#include "processing/solver/solve_types.h"
+
+namespace msmcal::results {
+
+// ---------------------------------------------------------------------------- solver CSVs
+
+// results/mirror_planes.csv: j,t_s,nx,ny,nz,d_mm,alpha_deg,beta_deg,trans_mm,sigma_alpha_deg,
+// sigma_beta_deg,sigma_trans_mm.
+std::vector<dataset::MirrorPlaneRow> ReadMirrorPlanesCsv(const std::filesystem::path& file);
+void WriteMirrorPlanesCsv(const std::filesystem::path& file,
+                          const std::vector<dataset::MirrorPlaneRow>& rows);
+// results/beams.csv: beam,px,py,pz,vx,vy,vz.
+std::vector<dataset::BeamRow> ReadBeamsCsv(const std::filesystem::path& file);
+void WriteBeamsCsv(const std::filesystem::path& file, const std::vector<dataset::BeamRow>& rows);
+// results/validation.csv: beam,j,err_px,err_deg.
+std::vector<dataset::ValidationRow> ReadValidationCsv(const std::filesystem::path& file);
+void WriteValidationCsv(const std::filesystem::path& file,
+                        const std::vector<dataset::ValidationRow>& rows);
+
+// results/validation_detail.csv (native): per held-out dot, the proposed and the baseline error,
+// the predicted sigma and the error normalised by it.
+struct ValidationDetailRow {
+  int beam = 0;
+  int j = 0;
+  double err_px = 0, err_deg = 0;
+  double baseline_err_px = 0, baseline_err_deg = 0;
+  double predicted_sigma_px = 0;
+  double normalised_error = 0;
+};
+std::vector<ValidationDetailRow> ValidationDetailRows(
+    const std::vector<solver::ValidationDetail>& validation);
+std::vector<ValidationDetailRow> ReadValidationDetailCsv(const std::filesystem::path& file);
+void WriteValidationDetailCsv(const std::filesystem::path& file,
+                              const std::vector<ValidationDetailRow>& rows);
+
+// ------------------------------------------------------------------- summary.json mirror_poses
+
+// The solver's figures under summary.json's "mirror_poses" key (other producers own other keys).
+struct MirrorPosesSummary {
+  double solve_time_s = 0, ceres_time_s = 0;
+  int ceres_iterations = 0;
+  int planes_scan = 0, planes_fast_only = 0, planes_neutral = 0;
+  int beams = 0;
+  double mean_spanning_angle_deg = 0;
+  double validation_rms_deg = 0, validation_rms_px = 0;
+  double baseline_validation_rms_deg = 0, baseline_validation_rms_px = 0;
+  double validation_normalised_rms = 0;
+  int validation_count = 0;
+  double corner_variance_factor = 0, dot_variance_factor = 0;
+  // Variance-component estimation per residual family (solver::MleFamilyName): the posterior
+  // factor on its input covariance and its redundancy.
+  struct Family {
+    std::string name;
+    double variance_factor = 0, redundancy = 0;
+  };
+  std::vector<Family> variance_factors;
+  Eigen::Vector3d mirror0_sigma_rotation_deg = Eigen::Vector3d::Zero();
+  Eigen::Vector3d mirror0_sigma_origin_mm = Eigen::Vector3d::Zero();
+  double rms_sigma_alpha_deg = 0, rms_sigma_beta_deg = 0, rms_sigma_trans_mm = 0;
+  std::vector<solver::DroppedFrame> dropped_frames;
+  std::vector<std::string> notes;
+  Eigen::Matrix3d world_from_mirror0_rotation = Eigen::Matrix3d::Identity();
+  Eigen::Vector3d world_from_mirror0_translation = Eigen::Vector3d::Zero();
+};
+MirrorPosesSummary SummariseSolve(const solver::SolveOutput& out, double solve_time_s);
+// Replaces the "mirror_poses" key of `file` (created if absent; an unreadable file is replaced),
+// keeping the other keys. JSON with two-space indent, keys sorted.
+void WriteMirrorPosesSummary(const std::filesystem::path& file, const MirrorPosesSummary& summary);
+// Every field is required; a JSON null (how a non-finite number is written) reads as NaN.
+MirrorPosesSummary ReadMirrorPosesSummary(const std::filesystem::path& file);
+
+// ----------------------------------------------------------------------------- Hall results
+
+// results/hall_model.yaml (format msmcal-hall-model/1): model kind, parameters, delta_t_s,
+// train/test RMS per output, the Table II comparison, the time base and background profile.
+std::string FormatHallModelYaml(const hall::HallCalibrationResult& result,
+                                const hall::HallCalibrationOptions& options);
+struct HallModelFile {
+  hall::HallModel model;
+  hall::TimeBase time_base;  // offset, rate, pattern period
+  hall::PhaseProfile background;
+  Eigen::Vector3d actual_mean_uT = Eigen::Vector3d::Zero();
+  // The final model's mean test RMS over the splits (alpha deg, beta deg, trans mm); absent when
+  // the file has no test_rms.
+  std::optional<Eigen::Vector3d> test_rms;
+};
+// Errors name the file and the field: "hall_model.yaml: field 'delta_t_s': expected a number
+// (line 3)".
+HallModelFile ReadHallModelYaml(const std::filesystem::path& file);
+
+// results/hall_poses.csv: mcu_time_us,t_s,alpha_deg,beta_deg,trans_mm (t_s: generator time of
+// the pose, i.e. of the reading minus the model's delta_t).
+struct HallPoseRow {
+  double mcu_time_us = 0;
+  double t_s = 0;
+  double alpha_deg = 0, beta_deg = 0, trans_mm = 0;
+};
+std::vector<HallPoseRow> ReadHallPosesCsv(const std::filesystem::path& file);
+void WriteHallPosesCsv(const std::filesystem::path& file, const std::vector<HallPoseRow>& rows);
+
+}  // namespace msmcal::results

@@ -1,0 +1,277 @@
+#include "sessions/results/results_files.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+
+#include "sessions/interchange/interchange_io.h"
+#include "tests/testing/test_files.h"
+
+namespace msmcal::results {
+namespace {
+
+namespace fs = std::filesystem;
+using testing::Slurp;
+using testing::Spit;
+using testing::TempDir;
+
+// The message of what `read` throws (empty when it does not throw InterchangeError).
+template <typename Read>
+std::string ErrorOf(Read read) {
+  try {
+    read();
+  } catch (const interchange::InterchangeError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+TEST(ResultsCsv, MirrorPlanesRoundTripExactlyAndTheBytesAreTheFormat) {
+  TempDir dir;
+  dataset::MirrorPlaneRow r;
+  r.j = 7;
+  r.t_s = 0.1;
+  r.plane_in_world.n = Eigen::Vector3d(0.6, -0.8, 0);
+  r.plane_in_world.d = -123.456;
+  r.alpha_deg = 1.0 / 3;
+  r.beta_deg = -2e-7;
+  r.trans_mm = 0.05;
+  r.sigma_alpha_deg = 1e-3;
+  r.sigma_beta_deg = 2e-3;
+  r.sigma_trans_mm = 3e-3;
+  const fs::path file = dir.path() / "mirror_planes.csv";
+  WriteMirrorPlanesCsv(file, {r});
+  EXPECT_EQ(Slurp(file),
+            "j,t_s,nx,ny,nz,d_mm,alpha_deg,beta_deg,trans_mm,sigma_alpha_deg,sigma_beta_deg,"
+            "sigma_trans_mm\n7,0.1,0.6,-0.8,0,-123.456,0.3333333333333333,-2e-07,0.05,0.001,0.002,"
+            "0.003\n");
+  const auto back = ReadMirrorPlanesCsv(file);
+  ASSERT_EQ(back.size(), 1u);
+  EXPECT_EQ(back[0].j, 7);
+  EXPECT_EQ(back[0].alpha_deg, r.alpha_deg);
+  EXPECT_EQ(back[0].plane_in_world.n, r.plane_in_world.n);
+  EXPECT_EQ(back[0].plane_in_world.d, r.plane_in_world.d);
+  EXPECT_EQ(back[0].sigma_trans_mm, r.sigma_trans_mm);
+}
+
+TEST(ResultsCsv, BeamsAndValidationRoundTrip) {
+  TempDir dir;
+  WriteBeamsCsv(dir.path() / "beams.csv", {{2, {1.5, -2, 3e5}, {0, 0.6, 0.8}}});
+  EXPECT_EQ(Slurp(dir.path() / "beams.csv"), "beam,px,py,pz,vx,vy,vz\n2,1.5,-2,3e+05,0,0.6,0.8\n");
+  const auto beams = ReadBeamsCsv(dir.path() / "beams.csv");
+  ASSERT_EQ(beams.size(), 1u);
+  EXPECT_EQ(beams[0].beam, 2);
+  EXPECT_EQ(beams[0].p, Eigen::Vector3d(1.5, -2, 3e5));
+  EXPECT_EQ(beams[0].v, Eigen::Vector3d(0, 0.6, 0.8));
+
+  WriteValidationCsv(dir.path() / "validation.csv", {{3, 11, 0.25, 1e-4}, {4, 12, 0.5, 2e-4}});
+  EXPECT_EQ(Slurp(dir.path() / "validation.csv"),
+            "beam,j,err_px,err_deg\n3,11,0.25,1e-04\n4,12,0.5,2e-04\n");
+  const auto val = ReadValidationCsv(dir.path() / "validation.csv");
+  ASSERT_EQ(val.size(), 2u);
+  EXPECT_EQ(val[1].beam, 4);
+  EXPECT_EQ(val[1].j, 12);
+  EXPECT_EQ(val[1].err_deg, 2e-4);
+}
+
+TEST(ResultsCsv, ValidationDetailRoundTripFromTheSolversRows) {
+  TempDir dir;
+  solver::ValidationDetail v;
+  v.row = {5, 9, 0.125, 0.01};
+  v.baseline = {5, 9, 0.75, 0.06};
+  v.predicted_sigma_px = 0.1;
+  v.normalised_error = 1.25;
+  const fs::path file = dir.path() / "validation_detail.csv";
+  WriteValidationDetailCsv(file, ValidationDetailRows({v}));
+  EXPECT_EQ(Slurp(file),
+            "beam,j,err_px,err_deg,baseline_err_px,baseline_err_deg,predicted_sigma_px,"
+            "normalised_error\n5,9,0.125,0.01,0.75,0.06,0.1,1.25\n");
+  const auto back = ReadValidationDetailCsv(file);
+  ASSERT_EQ(back.size(), 1u);
+  EXPECT_EQ(back[0].beam, 5);
+  EXPECT_EQ(back[0].j, 9);
+  EXPECT_EQ(back[0].baseline_err_px, 0.75);
+  EXPECT_EQ(back[0].predicted_sigma_px, 0.1);
+  EXPECT_EQ(back[0].normalised_error, 1.25);
+}
+
+TEST(ResultsCsv, HallPosesRoundTrip) {
+  TempDir dir;
+  const fs::path file = dir.path() / "hall_poses.csv";
+  WriteHallPosesCsv(file, {{1000, 0.001, 1.5, -2.25, 0.01}, {2000.5, 0.002, 1.75, -2.5, 0.02}});
+  EXPECT_EQ(Slurp(file),
+            "mcu_time_us,t_s,alpha_deg,beta_deg,trans_mm\n1000,0.001,1.5,-2.25,0.01\n"
+            "2000.5,0.002,1.75,-2.5,0.02\n");
+  const auto back = ReadHallPosesCsv(file);
+  ASSERT_EQ(back.size(), 2u);
+  EXPECT_EQ(back[1].mcu_time_us, 2000.5);
+  EXPECT_EQ(back[1].beta_deg, -2.5);
+}
+
+TEST(ResultsCsv, MalformedFilesNameFileLineAndColumn) {
+  TempDir dir;
+  const fs::path poses = dir.path() / "hall_poses.csv";
+  Spit(poses, "mcu_time_us,t_s,alpha_deg,beta_deg,trans_mm\n1,0,0,0,0\n\n2,0,abc,0,0\n");
+  EXPECT_EQ(ErrorOf([&] { ReadHallPosesCsv(poses); }),
+            poses.string() + ":4: column 'alpha_deg': 'abc' is not a number");
+  // A missing column is an error, never a zero.
+  const fs::path detail = dir.path() / "validation_detail.csv";
+  Spit(detail, "beam,j,err_px,err_deg\n1,2,0.5,0.1\n");
+  EXPECT_NE(ErrorOf([&] {
+              ReadValidationDetailCsv(detail);
+            }).find(detail.string() + ":1: header is 'beam,j,err_px,err_deg' but expected"),
+            std::string::npos);
+  Spit(detail,
+       "beam,j,err_px,err_deg,baseline_err_px,baseline_err_deg,predicted_sigma_px,"
+       "normalised_error\n1,2,0.5,0.1,0.2\n");
+  EXPECT_NE(ErrorOf([&] {
+              ReadValidationDetailCsv(detail);
+            }).find(detail.string() + ":2: expected 8 cells"),
+            std::string::npos);
+  const fs::path planes = dir.path() / "mirror_planes.csv";
+  Spit(planes,
+       "j,t_s,nx,ny,nz,d_mm,alpha_deg,beta_deg,trans_mm,sigma_alpha_deg,sigma_beta_deg,"
+       "sigma_trans_mm\n1.5,0,0,0,1,0,0,0,0,0,0,nan\n");
+  EXPECT_EQ(ErrorOf([&] { ReadMirrorPlanesCsv(planes); }),
+            planes.string() + ":2: column 'j': '1.5' is not an integer");
+  EXPECT_NE(ErrorOf([&] { ReadBeamsCsv(dir.path() / "absent.csv"); }).find("absent.csv"),
+            std::string::npos);
+}
+
+MirrorPosesSummary SampleSummary() {
+  MirrorPosesSummary s;
+  s.solve_time_s = 12.5;
+  s.ceres_time_s = 0.75;
+  s.ceres_iterations = 17;
+  s.planes_scan = 40;
+  s.planes_fast_only = 2;
+  s.planes_neutral = 1;
+  s.beams = 3;
+  s.mean_spanning_angle_deg = 27.5;
+  s.validation_rms_deg = 0.0125;
+  s.validation_rms_px = 0.31;
+  s.baseline_validation_rms_deg = 0.05;
+  s.baseline_validation_rms_px = 1.2;
+  s.validation_normalised_rms = std::numeric_limits<double>::quiet_NaN();
+  s.validation_count = 80;
+  s.corner_variance_factor = 1.1;
+  s.dot_variance_factor = 0.9;
+  s.variance_factors = {{"corners_c1_world", 1.1, 300.5}, {"reflected_dots", 0.9, 75}};
+  s.mirror0_sigma_rotation_deg = {0.01, 0.02, 0.03};
+  s.mirror0_sigma_origin_mm = {0.1, 0.2, 0.3};
+  s.rms_sigma_alpha_deg = 0.004;
+  s.rms_sigma_beta_deg = 0.005;
+  s.rms_sigma_trans_mm = 0.006;
+  s.dropped_frames = {{"step2/0003.png", "world board not found"}};
+  s.notes = {"3 beams", "trigger assignment: 40 of 40"};
+  s.world_from_mirror0_rotation << 0, -1, 0, 1, 0, 0, 0, 0, 1;
+  s.world_from_mirror0_translation = {10, 20, 300};
+  return s;
+}
+
+TEST(SummaryJson, MirrorPosesRoundTripAndOtherKeysAreKept) {
+  TempDir dir;
+  const fs::path file = dir.path() / "summary.json";
+  Spit(file, "{\"marg\": {\"cost\": 1.5}}\n");
+  const MirrorPosesSummary s = SampleSummary();
+  WriteMirrorPosesSummary(file, s);
+  const std::string text = Slurp(file);
+  EXPECT_NE(text.find("\"marg\": {\n    \"cost\": 1.5\n  }"), std::string::npos) << text;
+  EXPECT_NE(text.find("\"validation_normalised_rms\": null"), std::string::npos) << text;
+  const MirrorPosesSummary b = ReadMirrorPosesSummary(file);
+  EXPECT_EQ(b.solve_time_s, s.solve_time_s);
+  EXPECT_EQ(b.ceres_iterations, s.ceres_iterations);
+  EXPECT_EQ(b.planes_scan, s.planes_scan);
+  EXPECT_EQ(b.beams, s.beams);
+  EXPECT_EQ(b.validation_rms_deg, s.validation_rms_deg);
+  EXPECT_EQ(b.baseline_validation_rms_px, s.baseline_validation_rms_px);
+  EXPECT_TRUE(std::isnan(b.validation_normalised_rms));
+  EXPECT_EQ(b.validation_count, s.validation_count);
+  ASSERT_EQ(b.variance_factors.size(), 2u);
+  EXPECT_EQ(b.variance_factors[1].name, "reflected_dots");
+  EXPECT_EQ(b.variance_factors[1].redundancy, 75);
+  EXPECT_EQ(b.mirror0_sigma_origin_mm, s.mirror0_sigma_origin_mm);
+  ASSERT_EQ(b.dropped_frames.size(), 1u);
+  EXPECT_EQ(b.dropped_frames[0].reason, "world board not found");
+  EXPECT_EQ(b.notes, s.notes);
+  EXPECT_EQ(b.world_from_mirror0_rotation, s.world_from_mirror0_rotation);
+  EXPECT_EQ(b.world_from_mirror0_translation, s.world_from_mirror0_translation);
+  // Writing what was read gives the same bytes.
+  WriteMirrorPosesSummary(file, b);
+  EXPECT_EQ(Slurp(file), text);
+}
+
+TEST(SummaryJson, AMissingOrMistypedFieldIsNamed) {
+  TempDir dir;
+  const fs::path file = dir.path() / "summary.json";
+  Spit(file, "{\"mirror_poses\": {\"validation_rms_deg\": 0.1}}\n");
+  EXPECT_EQ(ErrorOf([&] { ReadMirrorPosesSummary(file); }),
+            file.string() + ": mirror_poses.solve_time_s: missing");
+  WriteMirrorPosesSummary(file, SampleSummary());
+  std::string text = Slurp(file);
+  const std::string key = "\"planes_scan\": 40";
+  text.replace(text.find(key), key.size(), "\"planes_scan\": \"forty\"");
+  Spit(file, text);
+  EXPECT_EQ(ErrorOf([&] { ReadMirrorPosesSummary(file); }),
+            file.string() + ": mirror_poses.planes_scan: expected an integer, got \"forty\"");
+  Spit(file, "{\"other\": 1}\n");
+  EXPECT_EQ(ErrorOf([&] { ReadMirrorPosesSummary(file); }),
+            file.string() + ": mirror_poses: missing");
+}
+
+hall::HallCalibrationResult SampleHallResult() {
+  hall::HallCalibrationResult r;
+  hall::HallModel& m = r.final_fit.model;
+  m.kind = hall::HallModelKind::kLinear;
+  m.a = Eigen::MatrixXd::Zero(3, m.FeatureCount());
+  for (int i = 0; i < m.a.rows(); ++i)
+    for (int j = 0; j < m.a.cols(); ++j) m.a(i, j) = 0.1 * i - 0.01 * j + 1e-9;
+  m.delta_t_s = 1.25e-4;
+  r.final_fit.train_rms = {0.01, 0.02, 0.003};
+  hall::ModelStats stats;
+  stats.kind = m.kind;
+  stats.test_rms_mean = {0.083, 0.069, 0.1};
+  stats.test_rms_std = {0.04, 0.04, 0.08};
+  stats.delta_t_mean_s = 1.2e-4;
+  r.table = {stats};
+  r.best = m.kind;
+  r.actual_time_base.offset_us = 12345.5;
+  r.actual_time_base.rate_us_per_s = 1e6 * (1 + 3e-6);
+  r.actual_time_base.pattern_period_s = 0.5;
+  r.foreground.background =
+      hall::PhaseProfile::FromBins(0.5, {{1, 2, 3}, {4, 5, 6}, {7, 8, 9}, {-1, -2, -3.5}});
+  return r;
+}
+
+TEST(HallModelYaml, RoundTripOfTheFieldsThePredictorAndTheReportUse) {
+  TempDir dir;
+  const hall::HallCalibrationResult r = SampleHallResult();
+  const fs::path file = dir.path() / "hall_model.yaml";
+  interchange::WriteFileAtomically(file, FormatHallModelYaml(r, {}));
+  const HallModelFile back = ReadHallModelYaml(file);
+  EXPECT_EQ(back.model.kind, r.final_fit.model.kind);
+  EXPECT_EQ(back.model.delta_t_s, r.final_fit.model.delta_t_s);
+  EXPECT_EQ(back.model.a, r.final_fit.model.a);
+  EXPECT_EQ(back.time_base.offset_us, r.actual_time_base.offset_us);
+  EXPECT_EQ(back.time_base.rate_us_per_s, r.actual_time_base.rate_us_per_s);
+  EXPECT_EQ(back.background.bins(), r.foreground.background.bins());
+  ASSERT_TRUE(back.test_rms.has_value());
+  EXPECT_EQ(*back.test_rms, r.table[0].test_rms_mean);
+}
+
+TEST(HallModelYaml, ABadFieldIsNamed) {
+  TempDir dir;
+  const fs::path file = dir.path() / "hall_model.yaml";
+  std::string text = FormatHallModelYaml(SampleHallResult(), {});
+  const size_t at = text.find("delta_t_s: ");
+  text.replace(at, text.find('\n', at) - at, "delta_t_s: abc");
+  Spit(file, text);
+  const std::string e = ErrorOf([&] { ReadHallModelYaml(file); });
+  EXPECT_NE(e.find(file.string() + ": field 'delta_t_s': expected a number (line "),
+            std::string::npos)
+      << e;
+}
+
+}  // namespace
+}  // namespace msmcal::results
