@@ -13,6 +13,7 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "drivers/camera/testing/fake_v4l2_device.h"
+#include "mocks/generator/mock_server.h"
 #include "sessions/orchestrator/instruments.h"
 #include "sessions/orchestrator/orchestrator.h"
 #include "simulation/twin/demo_rig.h"
