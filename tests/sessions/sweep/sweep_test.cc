@@ -92,6 +92,7 @@ TEST(SweepPlan, ExpandsTheProductTimesRepeatsInnermostFastest) {
     names.insert(p.name);
     EXPECT_EQ(simulation::PointSimOptions(p).step1.poses, 4);  // base applies to every point
     EXPECT_EQ(simulation::PointSimOptions(p).seed, 10u + static_cast<uint64_t>(p.repeat));
+    EXPECT_EQ(p.seed, simulation::PointSimOptions(p).seed);  // what the summary's seed column shows
     EXPECT_DOUBLE_EQ(simulation::PointSimOptions(p).mirror.fast.frequency_hz,
                      std::stod(p.values[0].second));
     EXPECT_EQ(simulation::PointSimOptions(p).triggers.max_triggers, std::stoi(p.values[1].second));
