@@ -26,6 +26,7 @@
 #include "sessions/orchestrator/report.h"
 #include "sessions/store/session_store.h"
 #include "sessions/store/transfer.h"
+#include "simulation/truth/truth_comparison.h"
 
 namespace msmcal::app {
 namespace {
@@ -94,7 +95,8 @@ void RunDemo(const DemoArgs& args) {
     std::printf("session stored in %s\n", args.store.c_str());
     notes.push_back("session stored in " + args.store);
   }
-  const orchestrator::SessionReport report = orchestrator::BuildSessionReport(out, notes);
+  const orchestrator::SessionReport report =
+      orchestrator::BuildSessionReport(out, notes, simulation::SimTruthSource());
   interchange::WriteFileAtomically(out / "report.html", report.html);
   std::printf("\n%s", report.text.c_str());
   std::printf("\nreport: %s   (total %.1f s)\n", (out / "report.html").string().c_str(), elapsed());

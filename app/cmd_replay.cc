@@ -19,8 +19,8 @@
 #include "app/command_registry.h"
 #include "app/session_flow.h"
 #include "sessions/orchestrator/orchestrator.h"
-#include "sessions/replay/replay_rig.h"
 #include "sessions/replay/session_compare.h"
+#include "simulation/replay/replay_rig.h"
 
 namespace msmcal::app {
 namespace {

@@ -18,6 +18,7 @@
 #include "sessions/interchange/interchange_io.h"
 #include "sessions/orchestrator/orchestrator.h"
 #include "sessions/orchestrator/report.h"
+#include "simulation/truth/truth_comparison.h"
 
 namespace msmcal::app {
 namespace {
@@ -78,7 +79,8 @@ void RunResume(const ResumeArgs& args) {
                              "(re-run a replay with `msmcal replay`)");
   }
   const FinishResult finished = FinishSession(dir, FinishOptions{}, &notes);
-  const orchestrator::SessionReport report = orchestrator::BuildSessionReport(dir, notes);
+  const orchestrator::SessionReport report =
+      orchestrator::BuildSessionReport(dir, notes, simulation::SimTruthSource());
   interchange::WriteFileAtomically(dir / "report.html", report.html);
   std::printf("\n%s", report.text.c_str());
   std::printf("\nreport: %s   (resume took %.1f s)\n", (dir / "report.html").string().c_str(),

@@ -1,9 +1,9 @@
 // `msmcal session check --rig FILE --camera ADDR [--mcu DEVICE]`: the orchestrator's rig check
 // against the instruments of a rig configuration (config/rig.yaml: `generators:` and `hall_mcu:`
 // sections): identifies both generators and checks the reference lock and the signal limits,
-// opens the camera by address (Mono8), identifies the Hall MCU and reads a status frame. Prints
-// what it found and, when something is wrong, the list of problems (exit status 1). Generator
-// outputs are left off.
+// opens the camera (GigE Vision by address, or V4L2 by device; Mono8), identifies the Hall MCU and
+// reads a status frame. Prints what it found and, when something is wrong, the list of problems
+// (exit status 1). Generator outputs are left off.
 //
 // `msmcal session run --rig FILE --camera ADDR --plan DIR --out DIR [--mcu DEVICE] [--rig-id ID]
 // [--mirror-id ID] [--note TEXT]`: a calibration session on the real rig, guided on this
@@ -29,6 +29,7 @@
 #include "sessions/interchange/interchange_io.h"
 #include "sessions/orchestrator/orchestrator.h"
 #include "sessions/orchestrator/report.h"
+#include "simulation/truth/truth_comparison.h"
 
 namespace msmcal::app {
 namespace {
@@ -48,7 +49,7 @@ void RunSessionCheck(const SessionCheckArgs& args) {
   const hall_mcu::HallMcuConfig mcu = hall_mcu::LoadHallMcuConfig(args.rig);
   options.mcu = mcu.link;
   options.mcu_rate_hz = mcu.rate_hz;
-  options.camera_address = args.camera;
+  options.camera = args.camera;
   const std::string device = args.mcu.empty() ? mcu.link.device : args.mcu;
   const orchestrator::RigCheckResult r = orchestrator::CheckRigOnly(options, nullptr, device);
   for (const auto& f : r.found) std::printf("ok: %s\n", f.c_str());
@@ -105,7 +106,8 @@ void RunSessionRun(const SessionRunArgs& args) {
   };
   (void)RunLabAcquisition(out, lab);
   const FinishResult finished = FinishSession(out, FinishOptions{}, &notes);
-  const orchestrator::SessionReport report = orchestrator::BuildSessionReport(out, notes);
+  const orchestrator::SessionReport report =
+      orchestrator::BuildSessionReport(out, notes, simulation::SimTruthSource());
   interchange::WriteFileAtomically(out / "report.html", report.html);
   std::printf("\n%s\nreport: %s\n", report.text.c_str(), (out / "report.html").string().c_str());
   if (!finished.ok()) throw CLI::RuntimeError(1);
@@ -117,7 +119,9 @@ void AddSessionCommands(CLI::App& app) {
   auto* check = session->add_subcommand(
       "check", "Rig check: identify every instrument, generator lock, camera format, MCU stream");
   check->add_option("--rig", args->rig, "Rig configuration (generators:, hall_mcu:)");
-  check->add_option("--camera", args->camera, "Camera IP address (GigE Vision, opened by address)")
+  check
+      ->add_option("--camera", args->camera,
+                   "Camera: GigE Vision IP address, or V4L2 device (/dev/video0)")
       ->required();
   check->add_option("--mcu", args->mcu, "Hall MCU serial device (default: the rig file's)");
   check->callback([args] { RunSessionCheck(*args); });
@@ -127,7 +131,9 @@ void AddSessionCommands(CLI::App& app) {
       "run",
       "A guided calibration session on the real rig (journalled; `msmcal resume` continues it)");
   run->add_option("--rig", run_args->rig, "Rig configuration (generators:, hall_mcu:)");
-  run->add_option("--camera", run_args->camera, "Camera IP address (GigE Vision)")->required();
+  run->add_option("--camera", run_args->camera,
+                  "Camera: GigE Vision IP address, or V4L2 device (/dev/video0)")
+      ->required();
   run->add_option("--mcu", run_args->mcu, "Hall MCU serial device (default: the rig file's)");
   run->add_option("--plan", run_args->plan,
                   "Plan folder: session.yaml + camera.yaml (frames to take, trigger table)")

@@ -29,6 +29,8 @@
 #include "sessions/store/session_store.h"
 #include "sessions/sweep/sweep_plan.h"
 #include "sessions/sweep/sweep_runner.h"
+#include "simulation/sweep_points/sim_sweep_parameters.h"
+#include "simulation/truth/truth_comparison.h"
 
 namespace msmcal::app {
 namespace {
@@ -135,13 +137,13 @@ void RunSweepCommand(const SweepArgs& args) {
     if (!fs::exists(plan_file))
       throw std::runtime_error(dir.string() + ": no sweep.yaml here: not a sweep folder");
   }
-  const sweep::SweepPlan plan = sweep::LoadSweepPlan(plan_file);
+  const sweep::SweepPlan plan = sweep::LoadSweepPlan(plan_file, simulation::SimSweepParameters());
   const std::vector<sweep::SweepPoint> points = sweep::ExpandPoints(plan);
   std::printf("msmcal sweep: %zu points (%zu axes x %d repeats) into %s\n", points.size(),
               plan.axes.size(), plan.repeats, dir.string().c_str());
   if (args.list) {
     for (const auto& p : points)
-      std::printf("  %s  seed %llu\n", p.name.c_str(), static_cast<unsigned long long>(p.sim.seed));
+      std::printf("  %s  seed %llu\n", p.name.c_str(), static_cast<unsigned long long>(p.seed));
     return;
   }
   std::fflush(stdout);
@@ -159,7 +161,7 @@ void RunSweepCommand(const SweepArgs& args) {
   hooks.acquire = [&args](const sweep::SweepPoint& point, const fs::path& folder, bool resume,
                           const std::function<void(const std::string&)>& log_line) {
     DemoAcquisitionOptions acq;
-    acq.sim = point.sim;
+    acq.sim = simulation::PointSimOptions(point);
     acq.camera_address = args.camera_address;
     acq.resume = resume;
     acq.progress = log_line;
@@ -170,7 +172,8 @@ void RunSweepCommand(const SweepArgs& args) {
     // Killed between the end of the acquisition and the truth being written: write it now (the
     // simulator is deterministic in its options).
     if (!fs::exists(folder / "truth"))
-      sim::WriteTruth(folder, sim::MakeTruth(sim::RigSimulator(point.sim)));
+      sim::WriteTruth(folder,
+                      sim::MakeTruth(sim::RigSimulator(simulation::PointSimOptions(point))));
     FinishOptions fo;
     fo.skip_done = true;
     fo.echo = false;
@@ -178,7 +181,8 @@ void RunSweepCommand(const SweepArgs& args) {
     std::vector<std::string> notes;
     const FinishResult r = FinishSession(folder, fo, &notes);
     try {  // the point's report, as `msmcal demo` writes it
-      const orchestrator::SessionReport report = orchestrator::BuildSessionReport(folder, notes);
+      const orchestrator::SessionReport report =
+          orchestrator::BuildSessionReport(folder, notes, simulation::SimTruthSource());
       interchange::WriteFileAtomically(folder / "report.html", report.html);
     } catch (const std::exception& e) {
       if (r.ok()) return std::string("report: ") + e.what();
@@ -192,7 +196,8 @@ void RunSweepCommand(const SweepArgs& args) {
   hooks.augment = [](const fs::path& folder, sweep::PointFigures* f) {
     if (!fs::exists(folder / "truth") || !fs::exists(folder / "results")) return;
     try {
-      const orchestrator::SessionReport r = orchestrator::BuildSessionReport(folder, {});
+      const orchestrator::SessionReport r =
+          orchestrator::BuildSessionReport(folder, {}, simulation::SimTruthSource());
       if (r.have_planes) f->normal_rms_vs_truth_deg = r.normal_rms_vs_truth_deg;
       if (r.have_hall_vs_truth) {
         f->hall_vs_truth_alpha_deg = r.hall_rms_vs_truth[0];

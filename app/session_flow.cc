@@ -17,11 +17,11 @@
 #include "mocks/rig/truth_io.h"
 #include "sessions/interchange/interchange_io.h"
 #include "sessions/orchestrator/console_operator.h"
-#include "sessions/orchestrator/demo_rig.h"
 #include "sessions/orchestrator/preview.h"
 #include "sessions/results/finish_steps.h"
 #include "sessions/store/session_store.h"
 #include "sessions/store/transfer.h"
+#include "simulation/twin/demo_rig.h"
 
 namespace msmcal::app {
 
@@ -79,11 +79,11 @@ void MakeGuided(DemoAcquisitionOptions& acq) {
 
 orchestrator::SessionResult RunDemoAcquisition(const fs::path& out,
                                                const DemoAcquisitionOptions& options) {
-  orchestrator::DemoRigOptions ro;
+  twin::DemoRigOptions ro;
   ro.sim = options.sim;
   ro.camera_address = options.camera_address;
   ro.camera_frame_rate_hz = options.camera_frame_rate_hz;
-  orchestrator::DemoRig rig(ro);
+  twin::DemoRig rig(ro);
   if (options.progress) {
     for (const auto& w : rig.sim().warnings()) options.progress("simulator warning: " + w);
     char buf[200];
@@ -157,7 +157,7 @@ orchestrator::SessionResult RunLabAcquisition(const fs::path& out,
   oo.mcu = mcu.link;
   if (!options.mcu_device.empty()) oo.mcu.device = options.mcu_device;
   oo.mcu_rate_hz = mcu.rate_hz;
-  oo.camera_address = options.camera_address;
+  oo.camera = options.camera_address;
   oo.camera_frame_rate_hz = options.camera_frame_rate_hz;
   oo.run_kind = "lab";
   YAML::Emitter config;

@@ -51,7 +51,7 @@ orchestrator::SessionResult RunDemoAcquisition(const std::filesystem::path& out,
 struct LabAcquisitionOptions {
   std::string rig_yaml;        // the rig configuration's text (generators:, hall_mcu:)
   std::string rig_origin;      // its file name, for messages
-  std::string camera_address;  // GigE Vision camera, opened by address
+  std::string camera_address;  // GigE Vision address or V4L2 device (OrchestratorOptions::camera)
   std::string mcu_device;      // empty: the rig configuration's hall_mcu.device
   double camera_frame_rate_hz = 10.0;
   dataset::Recording plan;  // session.yaml + camera.yaml of the plan (no images)

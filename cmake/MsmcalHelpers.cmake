@@ -32,13 +32,15 @@ function(msmcal_add_area)
   target_link_libraries(${ARG_MODULE} INTERFACE ${target})
 endfunction()
 
-# msmcal_add_subdirs(dir...): adds each listed area folder that exists, so that areas can
-# land independently.
+# msmcal_add_subdirs(dir...): adds each listed area folder. A listed folder without a
+# CMakeLists.txt is a configuration error: an area never disappears silently.
 macro(msmcal_add_subdirs)
   foreach(dir ${ARGN})
-    if(EXISTS ${CMAKE_CURRENT_SOURCE_DIR}/${dir}/CMakeLists.txt)
-      add_subdirectory(${dir})
+    if(NOT EXISTS ${CMAKE_CURRENT_SOURCE_DIR}/${dir}/CMakeLists.txt)
+      message(FATAL_ERROR "msmcal_add_subdirs: ${CMAKE_CURRENT_SOURCE_DIR}/${dir}/CMakeLists.txt "
+        "does not exist (listed in ${CMAKE_CURRENT_LIST_FILE})")
     endif()
+    add_subdirectory(${dir})
   endforeach()
 endmacro()
 

@@ -4,12 +4,17 @@
 //   "aravis:ID"                           -> Aravis by device id (discovery broadcast!)
 //   anything else ("127.0.0.1")           -> Aravis by address
 
+#include <memory>
 #include <string>
 
 #include "drivers/camera/camera.h"
 
 namespace msmcal::camera {
 
-OpenCameraResult OpenCamera(const std::string& device);
+class V4l2Syscalls;
+
+// `v4l2_syscalls`: the system calls under a V4L2 device (null: the kernel's); tests pass a fake.
+OpenCameraResult OpenCamera(const std::string& device,
+                            std::shared_ptr<V4l2Syscalls> v4l2_syscalls = nullptr);
 
 }  // namespace msmcal::camera

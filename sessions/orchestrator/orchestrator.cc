@@ -14,7 +14,6 @@
 
 #include "acquisition/hall/hall_csv_writer.h"
 #include "acquisition/hall/hall_recorder.h"
-#include "drivers/camera/aravis_camera.h"
 #include "drivers/generator/function_generator.h"
 #include "drivers/generator/rig_generators.h"
 #include "drivers/generator/safe_state.h"
@@ -28,7 +27,7 @@ namespace fs = std::filesystem;
 
 std::string OrchestratorOptions::Validate() const {
   if (out_dir.empty()) return "OrchestratorOptions.out_dir is empty: a session folder is needed";
-  if (camera_address.empty()) return "OrchestratorOptions.camera_address is empty";
+  if (camera.empty()) return "OrchestratorOptions.camera is empty";
   if (!(camera_frame_rate_hz > 0))
     return "OrchestratorOptions.camera_frame_rate_hz = " + std::to_string(camera_frame_rate_hz) +
            ": must be > 0";
@@ -176,22 +175,29 @@ int ExpectedDots(const dataset::Step2Frame& f) {
   return static_cast<int>(f.beams.size() * std::max<size_t>(1, f.triggers.size()));
 }
 
-struct Instruments {
+// The factory the options name, or the drivers'.
+InstrumentFactory& Instruments(const OrchestratorOptions& options) {
+  static const std::shared_ptr<InstrumentFactory> drivers = MakeDriverInstruments();
+  return options.instruments ? *options.instruments : *drivers;
+}
+
+struct OpenInstruments {
   std::unique_ptr<gen::FunctionGenerator> master, slave;
   std::unique_ptr<camera::Camera> cam;
   std::unique_ptr<hall_mcu::HallSensor> mcu;  // the background MCU link, checked
 };
 
 RigCheckResult CheckRig(const OrchestratorOptions& options, const dataset::Recording* plan,
-                        const std::string& mcu_device, Instruments* inst,
+                        const std::string& mcu_device, OpenInstruments* inst,
                         TranscriptFile* transcript = nullptr) {
   RigCheckResult r;
+  InstrumentFactory& instruments = Instruments(options);
   // Generators: identity (on open), reference lock, signal design within limits.
   auto open_generator = [&](int unit, const gen::Keysight33500Options& o,
                             std::unique_ptr<gen::FunctionGenerator>* g) {
     const std::string name = "unit" + std::to_string(unit);
     try {
-      *g = gen::OpenKeysight33500(o, transcript ? transcript->Sink(name) : nullptr);
+      *g = instruments.OpenGenerator(o, transcript ? transcript->Sink(name) : nullptr);
       const scpi::Identity id = (*g)->Identify();
       r.found.push_back(o.name + ": " + id.model);
       r.instruments.emplace_back(
@@ -227,11 +233,10 @@ RigCheckResult CheckRig(const OrchestratorOptions& options, const dataset::Recor
   } catch (const std::exception& e) {
     r.problems.push_back(std::string("signal design: ") + e.what());
   }
-  // Camera: opened by address, sensor size and pixel format.
-  camera::OpenCameraResult opened =
-      camera::OpenAravisCamera(camera::AravisCameraOptions{options.camera_address});
+  // Camera: sensor size and pixel format.
+  camera::OpenCameraResult opened = instruments.OpenCamera(options.camera);
   if (!opened.camera) {
-    r.problems.push_back("camera " + options.camera_address + ": " + opened.error);
+    r.problems.push_back("camera " + options.camera + ": " + opened.error);
   } else {
     inst->cam = std::move(opened.camera);
     const camera::CameraInfo info = inst->cam->Info();
@@ -264,7 +269,7 @@ RigCheckResult CheckRig(const OrchestratorOptions& options, const dataset::Recor
   try {
     hall_mcu::HallMcuOptions link = options.mcu;
     link.device = mcu_device;
-    inst->mcu = hall_mcu::OpenHallMcu(link);
+    inst->mcu = instruments.OpenHallSensor(link);
     hall_mcu::DeviceInfo dev;
     if (auto c = inst->mcu->Identify(&dev); !c.ok) {
       r.problems.push_back("Hall MCU " + link.device + ": " + c.message);
@@ -374,7 +379,7 @@ gen::RigSignalPlan PlanSessionSignals(const gen::RigSignalsConfig& config,
 
 RigCheckResult CheckRigOnly(const OrchestratorOptions& options, const dataset::Recording* plan,
                             const std::string& mcu_device) {
-  Instruments inst;
+  OpenInstruments inst;
   RigCheckResult r = CheckRig(options, plan, mcu_device, &inst);
   if (inst.master) inst.master->SafeState();
   if (inst.slave) inst.slave->SafeState();
@@ -562,7 +567,7 @@ SessionResult RunSession(const OrchestratorOptions& options, const dataset::Reco
   // background recording when it is due); otherwise the operator's background device is asked
   // for now.
   journal->SetStep(kStepRigCheck, store::StepState::kRunning);
-  Instruments inst;
+  OpenInstruments inst;
   std::string background_device = options.mcu.device;
   const bool ask_background_later = !background_device.empty();
   if (!ask_background_later) {
@@ -776,7 +781,7 @@ SessionResult RunSession(const OrchestratorOptions& options, const dataset::Reco
           inst.mcu.reset();
           hall_mcu::HallMcuOptions link = options.mcu;
           link.device = device;
-          inst.mcu = hall_mcu::OpenHallMcu(link);
+          inst.mcu = Instruments(options).OpenHallSensor(link);
           background_device = device;
         }
       }
@@ -799,7 +804,7 @@ SessionResult RunSession(const OrchestratorOptions& options, const dataset::Reco
       const std::string actual_device = rig_operator.PrepareHallRecording(HallRun::kActual);
       hall_mcu::HallMcuOptions link = options.mcu;
       link.device = actual_device;
-      auto actual_mcu = hall_mcu::OpenHallMcu(link);
+      auto actual_mcu = Instruments(options).OpenHallSensor(link);
       log.Line("Hall: actual recording on " + actual_device + " during step 2");
       const auto r =
           RecordHall(*actual_mcu, out / "hall" / "actual.csv", options, 0.0,

@@ -1,9 +1,10 @@
 #pragma once
 // The calibration session orchestrator (issue 9): rig check, step 1 (sliding plate poses),
 // background Hall recording, step 2 (neutral, fast-only and scan frames with the actual Hall
-// recording running), writing an interchange folder. Instruments are reached only through the
-// real drivers: SCPI to the two generators, GigE Vision (Aravis) to the camera, the serial link
-// to the Hall MCU. The person at the rig is a RigOperator.
+// recording running), writing an interchange folder. Instruments are reached only through their
+// interfaces, opened by an InstrumentFactory (sessions/orchestrator/instruments.h; by default the
+// real drivers: SCPI to the two generators, GigE Vision or V4L2 to the camera, the serial link to
+// the Hall MCU). The person at the rig is a RigOperator.
 //
 // Safe state: from the moment a generator output may be on, a SafeStateGuard switches every
 // output off on SIGINT/SIGTERM (then the process ends with 128 + signo), on any exception and at
@@ -21,6 +22,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <functional>
+#include <memory>
 #include <opencv2/core.hpp>
 #include <string>
 #include <utility>
@@ -31,6 +33,7 @@
 #include "drivers/generator/watchdog.h"
 #include "drivers/hall_mcu/hall_sensor.h"
 #include "processing/dataset/recording.h"
+#include "sessions/orchestrator/instruments.h"
 #include "sessions/orchestrator/quality_gate.h"
 #include "sessions/orchestrator/rig_operator.h"
 
@@ -63,9 +66,13 @@ inline constexpr const char* kStep2 = "step2";  // with the actual Hall recordin
 inline constexpr const char* kStepSessionWritten = "session_written";
 
 struct OrchestratorOptions {
-  std::filesystem::path out_dir;             // created; must be empty or absent
-  gen::RigGeneratorConfig generators;        // unit addresses, limits and the signals to apply
-  std::string camera_address = "127.0.0.1";  // GigE Vision camera, opened by address only
+  std::filesystem::path out_dir;       // created; must be empty or absent
+  gen::RigGeneratorConfig generators;  // unit addresses, limits and the signals to apply
+  // How the instruments are opened; null: the drivers (MakeDriverInstruments()).
+  std::shared_ptr<InstrumentFactory> instruments;
+  // The camera, as InstrumentFactory::OpenCamera reads it: a GigE Vision address (opened by
+  // address only) or a V4L2 device ("/dev/video0", "v4l2:/dev/video0").
+  std::string camera = "127.0.0.1";
   double camera_frame_rate_hz = 10.0;
   int frame_timeout_ms = 10000;  // per NextFrame
   int max_stale_frames = 50;     // frames discarded while waiting for the new setup
@@ -141,7 +148,7 @@ gen::RigSignalPlan PlanSessionSignals(const gen::RigSignalsConfig& config,
 
 // The rig check alone (what RunSession does first): identifies both generators, resets them and
 // checks that unit 2 locks to unit 1's 10 MHz reference, checks the signal design against the
-// limits, opens the camera by address (sensor size against `plan`'s camera when given, Mono8),
+// limits, opens the camera (sensor size against `plan`'s camera when given, Mono8),
 // identifies the Hall MCU on `mcu_device` and asks for a status frame. Leaves every generator
 // output off. Never throws for instrument problems: they are listed in the result.
 RigCheckResult CheckRigOnly(const OrchestratorOptions& options, const dataset::Recording* plan,

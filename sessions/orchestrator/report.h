@@ -6,12 +6,19 @@
 // histogram, predicted sigma vs error, Hall model prediction vs true pose).
 //
 // Everything comes from the folder: results/ (solver, Hall calibration, optional
-// results/hall_poses.csv from `msmcal hall predict`) and truth/ (simulated sessions only). A part
-// whose files are missing is listed in `skipped`, never estimated.
+// results/hall_poses.csv from `msmcal hall predict`) and, through a TruthSource, a ground truth
+// (simulated sessions only: the simulation layer reads truth/, simulation/truth). A part whose
+// files are missing is listed in `skipped`, never estimated.
 
 #include <filesystem>
+#include <functional>
+#include <map>
+#include <memory>
 #include <string>
 #include <vector>
+
+#include "processing/dataset/recording.h"
+#include "sessions/results/results_files.h"
 
 namespace msmcal::orchestrator {
 
@@ -38,10 +45,32 @@ struct SessionReport {
   std::string html;  // self-contained page
 };
 
-// Reads `dir` and builds the report. Throws std::runtime_error naming a file that exists but
-// cannot be parsed.
+// A session's ground truth as the report compares the results with it. BuildSessionReport calls
+// CompareMirrorPlanes (when the solver's planes are there) before CompareHallPoses (when the Hall
+// prediction is there and HasPoseTrajectory()); each fills the *_vs_truth figures of `report` and
+// appends its plots (SVG) to `plots`.
+class TruthComparison {
+ public:
+  virtual ~TruthComparison() = default;
+  // `planes`: results/mirror_planes.csv.
+  virtual void CompareMirrorPlanes(const std::vector<dataset::MirrorPlaneRow>& planes,
+                                   SessionReport* report, std::vector<std::string>* plots) = 0;
+  virtual double TrueDeltaT() const = 0;  // s
+  virtual bool HasPoseTrajectory() const = 0;
+  // `rows`: results/hall_poses.csv.
+  virtual void CompareHallPoses(const std::vector<results::HallPoseRow>& rows,
+                                SessionReport* report, std::vector<std::string>* plots) = 0;
+};
+// The truth of a session folder, or null when it has none. Throws std::runtime_error naming a
+// truth file that cannot be parsed.
+using TruthSource =
+    std::function<std::unique_ptr<TruthComparison>(const std::filesystem::path& dir)>;
+
+// Reads `dir` and builds the report; `truth` may be empty (no comparison with a truth). Throws
+// std::runtime_error naming a file that exists but cannot be parsed.
 SessionReport BuildSessionReport(const std::filesystem::path& dir,
-                                 const std::vector<std::string>& session_notes);
+                                 const std::vector<std::string>& session_notes,
+                                 const TruthSource& truth);
 
 // A minimal SVG plot (exposed for tests): series of points or polylines on linear axes.
 struct PlotSeries {

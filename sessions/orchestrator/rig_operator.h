@@ -11,7 +11,9 @@
 namespace msmcal::orchestrator {
 
 enum class HallRun { kBackground, kActual };
-const char* ToString(HallRun run);  // "background" | "actual"
+inline const char* ToString(HallRun run) {  // "background" | "actual"
+  return run == HallRun::kBackground ? "background" : "actual";
+}
 
 class RigOperator {
  public:

@@ -7,6 +7,7 @@
 #include <set>
 #include <sstream>
 #include <stdexcept>
+#include <utility>
 
 namespace msmcal::sweep {
 namespace {
@@ -110,17 +111,17 @@ void CheckLeaf(const std::string& source, const std::string& key, const YAML::No
 }
 
 // Lays `over` (the plan's base:) onto `tree`, checking keys and value forms against `schema`.
-void Overlay(const std::string& source, const std::string& prefix, const YAML::Node& schema,
-             YAML::Node tree, const YAML::Node& over) {
+void Overlay(const std::string& source, const std::string& noun, const std::string& prefix,
+             const YAML::Node& schema, YAML::Node tree, const YAML::Node& over) {
   if (!over.IsMap())
     Fail(source, over, (prefix.empty() ? std::string("base") : prefix) + ": expected a mapping");
   for (const auto& kv : over) {
     const std::string key = kv.first.as<std::string>();
     const std::string full = prefix.empty() ? key : prefix + "." + key;
     const YAML::Node s = schema[key];
-    if (!s) Fail(source, kv.first, "base." + full + ": unknown simulator option");
+    if (!s) Fail(source, kv.first, "base." + full + ": unknown " + noun);
     if (s.IsMap()) {
-      Overlay(source, full, s, tree[key], kv.second);
+      Overlay(source, noun, full, s, tree[key], kv.second);
     } else {
       CheckLeaf(source, "base." + full, s, kv.second);
       tree[key] = YAML::Clone(kv.second);
@@ -191,7 +192,11 @@ std::string PointFolderName(size_t index, int repeat,
 }
 
 SweepPlan ParseSweepPlan(const std::string& yaml_text, const std::string& source_name,
-                         const fs::path& base_dir) {
+                         const fs::path& base_dir,
+                         std::shared_ptr<const SweepParameters> parameters) {
+  if (!parameters) throw std::invalid_argument("ParseSweepPlan: no SweepParameters");
+  const SweepParameters& params = *parameters;
+  const std::string noun = params.Noun();
   YAML::Node root;
   try {
     root = YAML::Load(yaml_text);
@@ -210,26 +215,28 @@ SweepPlan ParseSweepPlan(const std::string& yaml_text, const std::string& source
   }
   SweepPlan plan;
   plan.source = source_name;
+  plan.parameters = parameters;
 
   // Base options: defaults < base_config < base:.
-  const YAML::Node schema = YAML::Load(sim::SimOptionsToYaml(sim::SimOptions{}));
-  sim::SimOptions base_options;
+  const YAML::Node schema = YAML::Load(params.DefaultsYaml());
+  std::string base_options = params.DefaultsYaml();
   if (const YAML::Node bc = root["base_config"]) {
     if (!bc.IsScalar()) Fail(source_name, bc, "base_config: expected a file name");
     fs::path file = bc.as<std::string>();
     if (file.is_relative()) file = base_dir / file;
     try {
-      base_options = sim::LoadSimOptions(file);
+      base_options = params.LoadFile(file);
     } catch (const std::exception& e) {
       Fail(source_name, bc, std::string("base_config: ") + e.what());
     }
   }
-  YAML::Node tree = YAML::Load(sim::SimOptionsToYaml(base_options));
+  YAML::Node tree = YAML::Load(base_options);
   if (const YAML::Node base = root["base"]) {
-    if (!base.IsNull()) Overlay(source_name, "", schema, tree, base);
+    if (!base.IsNull()) Overlay(source_name, noun, "", schema, tree, base);
   }
   try {
-    plan.base_yaml = sim::SimOptionsToYaml(sim::ParseSimOptions(YAML::Dump(tree), "base"));
+    uint64_t seed = 0;
+    plan.base_yaml = params.Resolve(YAML::Dump(tree), "base", /*repeat=*/0, &seed);
   } catch (const std::exception& e) {
     Fail(source_name, root["base"] ? root["base"] : root, e.what());
   }
@@ -245,9 +252,7 @@ SweepPlan ParseSweepPlan(const std::string& yaml_text, const std::string& source
       const YAML::Node s = Lookup(schema, SplitPath(axis.path));
       if (!s.IsDefined() || s.IsMap())
         Fail(source_name, kv.first,
-             "axes." + axis.path +
-                 ": unknown simulator option (dotted config/sim.yaml key, e.g. "
-                 "mirror.fast.frequency_hz)");
+             "axes." + axis.path + ": unknown " + noun + " " + params.PathHint());
       for (const auto& a : axes)
         if (a.path == axis.path)
           Fail(source_name, kv.first, "axes." + axis.path + ": listed twice");
@@ -328,11 +333,14 @@ SweepPlan ParseSweepPlan(const std::string& yaml_text, const std::string& source
   return plan;
 }
 
-SweepPlan LoadSweepPlan(const fs::path& file) {
-  return ParseSweepPlan(ReadFile(file, "sweep plan"), file.string(), file.parent_path());
+SweepPlan LoadSweepPlan(const fs::path& file, std::shared_ptr<const SweepParameters> parameters) {
+  return ParseSweepPlan(ReadFile(file, "sweep plan"), file.string(), file.parent_path(),
+                        std::move(parameters));
 }
 
 std::vector<SweepPoint> ExpandPoints(const SweepPlan& plan) {
+  if (!plan.parameters)
+    throw std::invalid_argument("ExpandPoints: the plan has no SweepParameters");
   // Loop levels outermost first: axis indices, with -1 for the repeat loop.
   std::vector<int> levels;
   for (size_t i = 0; i <= plan.axes.size(); ++i) {
@@ -366,13 +374,13 @@ std::vector<SweepPoint> ExpandPoints(const SweepPlan& plan) {
       where += (where.empty() ? "" : ", ") + axis.path + " = " + v;
     }
     try {
-      p.sim = sim::ParseSimOptions(YAML::Dump(tree), "point " + (where.empty() ? "base" : where));
+      p.options_yaml = plan.parameters->Resolve(
+          YAML::Dump(tree), "point " + (where.empty() ? "base" : where), p.repeat, &p.seed);
     } catch (const std::exception& e) {
       const int line = plan.axes.empty() ? 0 : plan.axes.front().line;
       throw std::runtime_error(plan.source + (line > 0 ? ":" + std::to_string(line) : "") +
                                ": axes: " + e.what());
     }
-    p.sim.seed += static_cast<uint64_t>(p.repeat);
     p.name = PointFolderName(p.index, p.repeat, p.values);
     points.push_back(std::move(p));
     // Odometer: the innermost level varies fastest.
@@ -412,8 +420,9 @@ std::string SweepPlanToYaml(const SweepPlan& plan) {
   root["base"] = base;
   YAML::Emitter e;
   e << root;
-  return "# msmcal sweep plan (self-contained copy of " + plan.source +
-         ": base holds every simulator option)\n" + std::string(e.c_str()) + "\n";
+  const std::string noun = plan.parameters ? plan.parameters->Noun() : "option";
+  return "# msmcal sweep plan (self-contained copy of " + plan.source + ": base holds every " +
+         noun + ")\n" + std::string(e.c_str()) + "\n";
 }
 
 std::string ComparePlans(const SweepPlan& stored, const SweepPlan& requested) {
@@ -426,14 +435,15 @@ std::string ComparePlans(const SweepPlan& stored, const SweepPlan& requested) {
     if (a[i].name != b[i].name)
       return "point " + std::to_string(i + 1) + " is " + a[i].name + " in the stored plan, " +
              b[i].name + " in " + requested.source;
-    const std::string ya = sim::SimOptionsToYaml(a[i].sim), yb = sim::SimOptionsToYaml(b[i].sim);
+    const std::string& ya = a[i].options_yaml;
+    const std::string& yb = b[i].options_yaml;
     if (ya != yb) {
       std::istringstream sa(ya), sb(yb);
       std::string la, lb;
       while (std::getline(sa, la) && std::getline(sb, lb))
         if (la != lb) break;
-      return "point " + a[i].name + ": simulator options differ (stored '" + la + "', " +
-             requested.source + " '" + lb + "')";
+      return "point " + a[i].name + ": " + requested.parameters->Noun() + "s differ (stored '" +
+             la + "', " + requested.source + " '" + lb + "')";
     }
   }
   return "";

@@ -1,6 +1,8 @@
 #pragma once
-// Sweep plans (issue 9, sweep mode): a YAML file that names simulator options to vary, expanded
-// into one calibration session ("point") per combination and repeat.
+// Sweep plans (issue 9, sweep mode): a YAML file that names options to vary, expanded into one
+// calibration session ("point") per combination and repeat. What the options are is not known
+// here: a SweepParameters (the simulation layer's simulator options,
+// simulation/sweep_points/sim_sweep_parameters.h) gives their schema, defaults and validation.
 //
 // Plan format (docs/sweep.md, config/sweep-example.yaml):
 //   base_config: FILE        # optional, simulator options (config/sim.yaml keys), relative to
@@ -19,30 +21,50 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <memory>
 #include <string>
 #include <utility>
 #include <vector>
 
-#include "mocks/rig/sim_options.h"
-
 namespace msmcal::sweep {
 
+// The option set a sweep varies, as YAML documents: a mapping whose leaves are numbers, bools,
+// lists of numbers or lists of lists of numbers. Implementations are immutable.
+class SweepParameters {
+ public:
+  virtual ~SweepParameters() = default;
+  // What one option is called in messages ("simulator option").
+  virtual std::string Noun() const = 0;
+  // Appended to "unknown <noun>" for an axis path that names no option.
+  virtual std::string PathHint() const = 0;
+  // The defaults with every field; its leaves are the schema for base: and axis values.
+  virtual std::string DefaultsYaml() const = 0;
+  // A base_config file as a document with every field. Throws std::runtime_error (the reason).
+  virtual std::string LoadFile(const std::filesystem::path& file) const = 0;
+  // Validates `yaml` (every field present) and returns it in canonical form (every field) with
+  // the repeat applied (the simulator: seed + repeat), and its seed. Throws std::runtime_error
+  // starting with `where` and naming the problem.
+  virtual std::string Resolve(const std::string& yaml, const std::string& where, int repeat,
+                              uint64_t* seed) const = 0;
+};
+
 struct SweepAxis {
-  std::string path;                 // dotted simulator option path ("mirror.fast.frequency_hz")
+  std::string path;                 // dotted option path ("mirror.fast.frequency_hz")
   std::vector<std::string> values;  // each value as YAML flow text ("205", "[110, 135]")
   int line = 0;                     // 1-based line of the key in the plan (0: unknown)
 };
 
 struct SweepPlan {
   std::string source;  // the plan file (for messages)
-  // The effective base simulator options (defaults < base_config < base:) as YAML with every
-  // field (SimOptionsToYaml), so that the plan is self-contained once loaded.
+  // The effective base options (defaults < base_config < base:) as YAML with every field
+  // (SweepParameters::Resolve), so that the plan is self-contained once loaded.
   std::string base_yaml;
   std::vector<SweepAxis> axes;  // in nesting order (outermost first), see `order`
   int repeats = 1;
   // Position of the repeat loop in the nesting order: 0 = outermost, axes.size() = innermost.
   size_t repeat_level = 0;
   std::string note;
+  std::shared_ptr<const SweepParameters> parameters;  // never null in a parsed plan
 };
 
 // One session of the sweep.
@@ -51,21 +73,26 @@ struct SweepPoint {
   int repeat = 0;    // 0 .. repeats-1
   // (option path, value text) in SweepPlan::axes order (the nesting order).
   std::vector<std::pair<std::string, std::string>> values;
-  sim::SimOptions sim;  // the effective simulator options (seed = base seed + repeat)
-  std::string name;     // the point's folder name (PointFolderName)
+  // The effective options (SweepParameters::Resolve: every field, repeat applied) and seed.
+  std::string options_yaml;
+  uint64_t seed = 0;
+  std::string name;  // the point's folder name (PointFolderName)
   // "fast.frequency_hz=205 triggers.max_triggers=18 r0" for progress lines and tables.
   std::string Label() const;
 };
 
-// Parses a plan. `source_name` names the plan in messages; `base_dir` resolves base_config.
+// Parses a plan of `parameters`. `source_name` names the plan in messages; `base_dir` resolves
+// base_config.
 SweepPlan ParseSweepPlan(const std::string& yaml_text, const std::string& source_name,
-                         const std::filesystem::path& base_dir);
+                         const std::filesystem::path& base_dir,
+                         std::shared_ptr<const SweepParameters> parameters);
 // Reads and parses a plan file (base_config relative to the file's folder).
-SweepPlan LoadSweepPlan(const std::filesystem::path& file);
+SweepPlan LoadSweepPlan(const std::filesystem::path& file,
+                        std::shared_ptr<const SweepParameters> parameters);
 
 // The Cartesian product of the axes times the repeats, in nesting order (the innermost loop
 // varies fastest). Throws std::runtime_error naming the plan, the axis and value when a point's
-// simulator options are invalid (SimOptions::Validate).
+// options are invalid (SweepParameters::Resolve).
 std::vector<SweepPoint> ExpandPoints(const SweepPlan& plan);
 
 // Short display name of an option path: its last two components ("fast.frequency_hz").
@@ -81,7 +108,7 @@ std::string PointFolderName(size_t index, int repeat,
 // note), readable by ParseSweepPlan: written to DIR/sweep.yaml by the sweep runner.
 std::string SweepPlanToYaml(const SweepPlan& plan);
 
-// Empty when `stored` and `requested` expand to the same points (names and simulator options);
+// Empty when `stored` and `requested` expand to the same points (names and options);
 // otherwise the first difference, for refusing a resume with a changed plan.
 std::string ComparePlans(const SweepPlan& stored, const SweepPlan& requested);
 

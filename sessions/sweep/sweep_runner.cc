@@ -24,7 +24,7 @@ std::string FirstLine(const std::string& s) {
 void PrepareFolder(const SweepPlan& plan, const fs::path& dir) {
   const fs::path plan_file = dir / kPlanFile;
   if (fs::exists(plan_file)) {
-    const SweepPlan stored = LoadSweepPlan(plan_file);
+    const SweepPlan stored = LoadSweepPlan(plan_file, plan.parameters);
     if (const std::string diff = ComparePlans(stored, plan); !diff.empty())
       throw std::runtime_error(dir.string() + ": holds a different sweep (" + diff +
                                "); choose another --out, or continue it with `msmcal sweep "

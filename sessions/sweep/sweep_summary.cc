@@ -67,7 +67,7 @@ std::vector<Column> Columns(const SweepPlan& plan, const std::vector<SummaryRow>
       return a < r.point.values.size() ? r.point.values[a].second : "";
     });
   add("repeat", [](const SummaryRow& r) { return std::to_string(r.point.repeat); });
-  add("seed", [](const SummaryRow& r) { return std::to_string(r.point.sim.seed); });
+  add("seed", [](const SummaryRow& r) { return std::to_string(r.point.seed); });
   add("status", [](const SummaryRow& r) { return StatusText(r.record); });
   if (for_csv) add("reason", [](const SummaryRow& r) { return r.record.reason; });
   add(for_csv ? "frames_accepted" : "ok",

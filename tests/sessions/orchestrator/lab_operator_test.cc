@@ -17,14 +17,17 @@
 #include <vector>
 
 #include "sessions/orchestrator/console_operator.h"
-#include "sessions/orchestrator/demo_rig.h"
 #include "sessions/orchestrator/orchestrator.h"
+#include "simulation/twin/demo_rig.h"
 #include "tests/testing/tiny_sim.h"
 
 namespace msmcal::orchestrator {
 namespace {
 
 namespace fs = std::filesystem;
+using twin::DemoRig;
+using twin::DemoRigOptions;
+using twin::SimulatedWorld;
 
 int64_t RealtimeNs() {
   timespec ts{};

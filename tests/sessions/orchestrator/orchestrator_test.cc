@@ -18,17 +18,21 @@
 #include "mocks/rig/truth_io.h"
 #include "processing/solver/pipeline.h"
 #include "sessions/interchange/interchange_io.h"
-#include "sessions/orchestrator/demo_rig.h"
 #include "sessions/orchestrator/quality_gate.h"
 #include "sessions/orchestrator/report.h"
 #include "sessions/results/results_files.h"
 #include "sessions/store/session_store.h"
+#include "simulation/truth/truth_comparison.h"
+#include "simulation/twin/demo_rig.h"
 #include "tests/testing/tiny_sim.h"
 
 namespace msmcal::orchestrator {
 namespace {
 
 namespace fs = std::filesystem;
+using twin::DemoRig;
+using twin::DemoRigOptions;
+using twin::SimulatedWorld;
 
 // Small but solvable: fewer poses, triggers and frames, short Hall recordings.
 using msmcal::testing::TinySim;
@@ -94,7 +98,7 @@ TEST(Report, SvgPlotDrawsEveryPointAndTheHistogramCountsAll) {
 TEST(Report, SaysWhatIsMissingInsteadOfInventingFigures) {
   const fs::path dir = FreshDir("empty_report");
   fs::create_directories(dir);
-  const SessionReport r = BuildSessionReport(dir, {});
+  const SessionReport r = BuildSessionReport(dir, {}, simulation::SimTruthSource());
   EXPECT_FALSE(r.have_planes);
   EXPECT_FALSE(r.have_hall);
   EXPECT_EQ(r.skipped.size(), 3u);  // truth, Table I, Table II
@@ -164,7 +168,7 @@ TEST(Orchestrator, RunsACompleteSessionThroughTheMocksAndTheSolverRecoversTruth)
   results::WriteMirrorPlanesCsv(dir / "results" / "mirror_planes.csv", out.planes);
   results::WriteMirrorPosesSummary(dir / "results" / "summary.json",
                                    results::SummariseSolve(out, /*solve_time_s=*/1.0));
-  const SessionReport report = BuildSessionReport(dir, progress);
+  const SessionReport report = BuildSessionReport(dir, progress, simulation::SimTruthSource());
   EXPECT_TRUE(report.have_planes);
   EXPECT_EQ(report.planes, static_cast<int>(out.planes.size()));
   EXPECT_NEAR(report.normal_rms_vs_truth_deg, rms_deg, 1e-9);
@@ -318,7 +322,7 @@ TEST(Orchestrator, RigCheckRefusesWithTheListOfProblems) {
   rig.generators().SetReferenceWired(false);
   const fs::path dir = FreshDir("check");
   OrchestratorOptions options = rig.MakeOrchestratorOptions(dir);
-  options.camera_address = "127.0.0.9";  // no camera answers there
+  options.camera = "127.0.0.9";  // no camera answers there
   try {
     RunSession(options, rig.Plan(), rig.world(), nullptr);
     FAIL() << "expected RigCheckError";

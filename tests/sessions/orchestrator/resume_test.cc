@@ -12,15 +12,18 @@
 
 #include "mocks/generator/mock_server.h"
 #include "sessions/interchange/interchange_io.h"
-#include "sessions/orchestrator/demo_rig.h"
 #include "sessions/orchestrator/orchestrator.h"
 #include "sessions/store/session_store.h"
+#include "simulation/twin/demo_rig.h"
 #include "tests/testing/tiny_sim.h"
 
 namespace msmcal::orchestrator {
 namespace {
 
 namespace fs = std::filesystem;
+using twin::DemoRig;
+using twin::DemoRigOptions;
+using twin::SimulatedWorld;
 
 using msmcal::testing::TinySim;
 

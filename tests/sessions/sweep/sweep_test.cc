@@ -16,11 +16,20 @@
 #include "sessions/sweep/sweep_runner.h"
 #include "sessions/sweep/sweep_state.h"
 #include "sessions/sweep/sweep_summary.h"
+#include "simulation/sweep_points/sim_sweep_parameters.h"
 
 namespace msmcal::sweep {
 namespace {
 
 namespace fs = std::filesystem;
+
+// Plans over the simulator's options, as `msmcal sweep` reads them.
+SweepPlan ParseSimPlan(const std::string& text, const std::string& source, const fs::path& dir) {
+  return ParseSweepPlan(text, source, dir, simulation::SimSweepParameters());
+}
+SweepPlan LoadSimPlan(const fs::path& file) {
+  return LoadSweepPlan(file, simulation::SimSweepParameters());
+}
 
 fs::path FreshDir(const std::string& name) {
   const fs::path dir = fs::path(::testing::TempDir()) / ("sweep_" + name);
@@ -55,7 +64,7 @@ repeats: 2
 // Expects ParseSweepPlan(text) to throw with a message containing every part.
 void ExpectPlanError(const std::string& text, const std::vector<std::string>& parts) {
   try {
-    (void)ParseSweepPlan(text, "plan.yaml", ".");
+    (void)ParseSimPlan(text, "plan.yaml", ".");
     ADD_FAILURE() << "no error for:\n" << text;
   } catch (const std::runtime_error& e) {
     const std::string msg = e.what();
@@ -65,7 +74,7 @@ void ExpectPlanError(const std::string& text, const std::vector<std::string>& pa
 }
 
 TEST(SweepPlan, ExpandsTheProductTimesRepeatsInnermostFastest) {
-  const SweepPlan plan = ParseSweepPlan(kPlan, "plan.yaml", ".");
+  const SweepPlan plan = ParseSimPlan(kPlan, "plan.yaml", ".");
   ASSERT_EQ(plan.axes.size(), 2u);
   EXPECT_EQ(plan.axes[0].line, 7);
   EXPECT_EQ(plan.repeats, 2);
@@ -81,11 +90,14 @@ TEST(SweepPlan, ExpandsTheProductTimesRepeatsInnermostFastest) {
   std::set<std::string> names;
   for (const auto& p : points) {
     names.insert(p.name);
-    EXPECT_EQ(p.sim.step1.poses, 4);  // base applies to every point
-    EXPECT_EQ(p.sim.seed, 10u + static_cast<uint64_t>(p.repeat));
-    EXPECT_DOUBLE_EQ(p.sim.mirror.fast.frequency_hz, std::stod(p.values[0].second));
-    EXPECT_EQ(p.sim.triggers.max_triggers, std::stoi(p.values[1].second));
-    EXPECT_DOUBLE_EQ(p.sim.mirror.slow.frequency_hz, 5.0);  // untouched default
+    EXPECT_EQ(simulation::PointSimOptions(p).step1.poses, 4);  // base applies to every point
+    EXPECT_EQ(simulation::PointSimOptions(p).seed, 10u + static_cast<uint64_t>(p.repeat));
+    EXPECT_EQ(p.seed, simulation::PointSimOptions(p).seed);  // what the summary's seed column shows
+    EXPECT_DOUBLE_EQ(simulation::PointSimOptions(p).mirror.fast.frequency_hz,
+                     std::stod(p.values[0].second));
+    EXPECT_EQ(simulation::PointSimOptions(p).triggers.max_triggers, std::stoi(p.values[1].second));
+    EXPECT_DOUBLE_EQ(simulation::PointSimOptions(p).mirror.slow.frequency_hz,
+                     5.0);  // untouched default
   }
   EXPECT_EQ(names.size(), points.size());
 }
@@ -93,7 +105,7 @@ TEST(SweepPlan, ExpandsTheProductTimesRepeatsInnermostFastest) {
 TEST(SweepPlan, OrderPutsRepeatsOutermostAndReordersAxes) {
   std::string text = kPlan;
   text += "order: [repeats, triggers.max_triggers, mirror.fast.frequency_hz]\n";
-  const auto points = ExpandPoints(ParseSweepPlan(text, "plan.yaml", "."));
+  const auto points = ExpandPoints(ParseSimPlan(text, "plan.yaml", "."));
   ASSERT_EQ(points.size(), 8u);
   for (size_t i = 0; i < 4; ++i) EXPECT_EQ(points[i].repeat, 0);
   EXPECT_EQ(points[0].values[0].first, "triggers.max_triggers");  // values in nesting order
@@ -108,12 +120,12 @@ TEST(SweepPlan, ListValuedAxesAndBaseConfigRelativeToThePlan) {
   WriteText(dir / "plan.yaml",
             "base_config: cfg/tiny.yaml\nbase:\n  seed: 8\naxes:\n"
             "  geometry.board_aim_mm: [[110, 135], [100, 140]]\n");
-  const SweepPlan plan = LoadSweepPlan(dir / "plan.yaml");
+  const SweepPlan plan = LoadSimPlan(dir / "plan.yaml");
   const auto points = ExpandPoints(plan);
   ASSERT_EQ(points.size(), 2u);
-  EXPECT_EQ(points[0].sim.step1.poses, 5);  // from base_config
-  EXPECT_EQ(points[0].sim.seed, 8u);        // base: over base_config
-  EXPECT_DOUBLE_EQ(points[1].sim.geometry.board_aim_mm[1], 140.0);
+  EXPECT_EQ(simulation::PointSimOptions(points[0]).step1.poses, 5);  // from base_config
+  EXPECT_EQ(simulation::PointSimOptions(points[0]).seed, 8u);        // base: over base_config
+  EXPECT_DOUBLE_EQ(simulation::PointSimOptions(points[1]).geometry.board_aim_mm[1], 140.0);
   EXPECT_EQ(points[1].name, "p002-geometry.board_aim_mm=100_140-r0");
 }
 
@@ -142,12 +154,12 @@ TEST(SweepPlan, ErrorsNameTheFileTheLineAndTheKey) {
 TEST(SweepPlan, TheDocumentedExamplePlanParses) {
   const char* env = std::getenv("MSMCAL_SOURCE_DIR");  // set by ctest
   const fs::path src = env ? fs::path(env) : fs::path(__FILE__).parent_path() / "../../..";
-  const SweepPlan plan = LoadSweepPlan(src / "config" / "sweep-example.yaml");
+  const SweepPlan plan = LoadSimPlan(src / "config" / "sweep-example.yaml");
   const auto points = ExpandPoints(plan);
   EXPECT_EQ(points.size(), 16u);
   EXPECT_EQ(plan.repeat_level, 0u);
   EXPECT_EQ(points[8].repeat, 1);  // repeats outermost
-  EXPECT_EQ(points[8].sim.seed, 2u);
+  EXPECT_EQ(simulation::PointSimOptions(points[8]).seed, 2u);
 }
 
 TEST(SweepPlan, FolderNamesAreSanitisedAndBounded) {
@@ -164,21 +176,20 @@ TEST(SweepPlan, FolderNamesAreSanitisedAndBounded) {
 TEST(SweepPlan, SelfContainedCopyRoundTripsAndChangesAreNamed) {
   std::string text = kPlan;
   text += "order: [triggers.max_triggers, repeats, mirror.fast.frequency_hz]\n";
-  const SweepPlan plan = ParseSweepPlan(text, "plan.yaml", ".");
-  const SweepPlan copy = ParseSweepPlan(SweepPlanToYaml(plan), "sweep.yaml", "/nonexistent");
+  const SweepPlan plan = ParseSimPlan(text, "plan.yaml", ".");
+  const SweepPlan copy = ParseSimPlan(SweepPlanToYaml(plan), "sweep.yaml", "/nonexistent");
   EXPECT_EQ(ComparePlans(copy, plan), "");
   EXPECT_EQ(copy.repeat_level, 1u);
   EXPECT_EQ(copy.note, plan.note);
 
   std::string changed = text;
   changed.replace(changed.find("poses: 4"), 8, "poses: 5");
-  const std::string diff = ComparePlans(copy, ParseSweepPlan(changed, "new.yaml", "."));
+  const std::string diff = ComparePlans(copy, ParseSimPlan(changed, "new.yaml", "."));
   EXPECT_NE(diff.find("simulator options differ"), std::string::npos) << diff;
   EXPECT_NE(diff.find("poses"), std::string::npos) << diff;
   std::string more = text;
   more.replace(more.find("[18, 30]"), 8, "[18, 30, 40]");
-  EXPECT_NE(ComparePlans(copy, ParseSweepPlan(more, "new.yaml", ".")).find("12"),
-            std::string::npos);
+  EXPECT_NE(ComparePlans(copy, ParseSimPlan(more, "new.yaml", ".")).find("12"), std::string::npos);
 }
 
 TEST(SweepState, ResumeDecisionFollowsWhatIsOnDisk) {
@@ -309,7 +320,7 @@ TEST(SweepSummary, ReadsFiguresAndWritesTheTable) {
   EXPECT_FALSE(ReadPointFigures(dir / "absent").validation_rms_deg.has_value());
 
   const SweepPlan plan =
-      ParseSweepPlan("axes:\n  mirror.fast.frequency_hz: [200, 205]\n", "plan.yaml", ".");
+      ParseSimPlan("axes:\n  mirror.fast.frequency_hz: [200, 205]\n", "plan.yaml", ".");
   const auto points = ExpandPoints(plan);
   std::vector<SummaryRow> rows = {
       {points[0], {PointStatus::kDone, "", 61, 1, false}, f},
@@ -389,7 +400,7 @@ struct FakeRig {
 TEST(SweepRunner, GoesOnAfterAFailureAndResumesWithoutRedoingWork) {
   const fs::path dir = FreshDir("runner") / "out";
   const SweepPlan plan =
-      ParseSweepPlan("axes:\n  triggers.max_triggers: [18, 24, 30, 36]\n", "plan.yaml", ".");
+      ParseSimPlan("axes:\n  triggers.max_triggers: [18, 24, 30, 36]\n", "plan.yaml", ".");
   FakeRig rig;
   rig.fail_acquire = {"p002"};
   rig.fail_finish = {"p003"};
@@ -441,7 +452,7 @@ TEST(SweepRunner, GoesOnAfterAFailureAndResumesWithoutRedoingWork) {
 
 TEST(SweepRunner, RefusesAChangedPlanOrAForeignFolderAndSetsAsideJournalFreeFolders) {
   const fs::path base = FreshDir("runner_refuse");
-  const SweepPlan plan = ParseSweepPlan("axes:\n  seed: [1, 2]\n", "plan.yaml", ".");
+  const SweepPlan plan = ParseSimPlan("axes:\n  seed: [1, 2]\n", "plan.yaml", ".");
   FakeRig rig;
   const auto points = ExpandPoints(plan);
   // A point folder with files but no journal (killed before the journal existed).
@@ -451,7 +462,7 @@ TEST(SweepRunner, RefusesAChangedPlanOrAForeignFolderAndSetsAsideJournalFreeFold
   EXPECT_TRUE(fs::exists(base / "a" / (points[0].name + ".set-aside-1") / "session_log.txt"));
   EXPECT_TRUE(fs::exists(base / "a" / points[0].name / "results" / "summary.json"));
 
-  const SweepPlan other = ParseSweepPlan("axes:\n  seed: [1, 3]\n", "other.yaml", ".");
+  const SweepPlan other = ParseSimPlan("axes:\n  seed: [1, 3]\n", "other.yaml", ".");
   try {
     (void)RunSweep(other, base / "a", rig.Hooks());
     ADD_FAILURE();

@@ -1,11 +1,11 @@
-#include "sessions/orchestrator/demo_rig.h"
+#include "simulation/twin/demo_rig.h"
 
 #include <stdexcept>
 #include <utility>
 
 #include "mocks/generator/mock_server.h"
 
-namespace msmcal::orchestrator {
+namespace msmcal::twin {
 
 std::string DemoRigOptions::Validate() const {
   if (camera_address.empty()) return "DemoRigOptions.camera_address is empty";
@@ -20,9 +20,9 @@ DemoRig::DemoRig(const DemoRigOptions& options) : options_(options) {
   if (std::string e = options.Validate(); !e.empty()) throw std::invalid_argument(e);
   sim_ = std::make_shared<const sim::RigSimulator>(options.sim);
   mcus_ = std::make_unique<DemoMcus>();
-  world_ = std::make_unique<SimulatedWorld>(sim_, [this](HallRun run) {
+  world_ = std::make_unique<SimulatedWorld>(sim_, [this](orchestrator::HallRun run) {
     // The background MCU started for the rig check (MakeOrchestratorOptions) is handed out once.
-    if (run == HallRun::kBackground && !background_device_.empty())
+    if (run == orchestrator::HallRun::kBackground && !background_device_.empty())
       return std::exchange(background_device_, std::string());
     return mcus_->Start(options_.sim, run);
   });
@@ -96,18 +96,19 @@ gen::RigGeneratorConfig DemoRig::GeneratorConfig() const {
   return DemoGeneratorConfig(options_.sim, generators_->port(1), generators_->port(2));
 }
 
-OrchestratorOptions DemoRig::MakeOrchestratorOptions(const std::filesystem::path& out_dir) const {
-  OrchestratorOptions o;
+orchestrator::OrchestratorOptions DemoRig::MakeOrchestratorOptions(
+    const std::filesystem::path& out_dir) const {
+  orchestrator::OrchestratorOptions o;
   o.out_dir = out_dir;
   o.generators = GeneratorConfig();
-  o.camera_address = options_.camera_address;
+  o.camera = options_.camera_address;
   o.camera_frame_rate_hz = options_.camera_frame_rate_hz;
   o.mcu.stall_timeout_ms = 2000;
   // The rig check identifies the background recording's MCU, which the operator action hands
   // out again when the background recording is due (so the guided operator is told to set it
   // up at the right time).
   if (background_device_.empty())
-    background_device_ = mcus_->Start(options_.sim, HallRun::kBackground);
+    background_device_ = mcus_->Start(options_.sim, orchestrator::HallRun::kBackground);
   o.mcu.device = background_device_;
   o.background_seconds = 0;  // the mock MCU ends with the simulator's recording
   o.mcu_rate_hz = static_cast<uint16_t>(options_.sim.hall.sample_rate_hz);
@@ -116,4 +117,4 @@ OrchestratorOptions DemoRig::MakeOrchestratorOptions(const std::filesystem::path
 
 dataset::Recording DemoRig::Plan() const { return sim_->MakeRecording(/*with_hall=*/false); }
 
-}  // namespace msmcal::orchestrator
+}  // namespace msmcal::twin

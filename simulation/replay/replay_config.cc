@@ -1,4 +1,4 @@
-#include "sessions/replay/replay_config.h"
+#include "simulation/replay/replay_config.h"
 
 #include <yaml-cpp/yaml.h>
 

@@ -1,6 +1,6 @@
 // ReplayWorld (recorded images as the rig's current setup, frame freshness) and the replay's
 // configuration helpers, without instruments.
-#include "sessions/replay/replay_world.h"
+#include "simulation/replay/replay_world.h"
 
 #include <gtest/gtest.h>
 #include <yaml-cpp/yaml.h>
@@ -13,7 +13,7 @@
 #include <string>
 #include <vector>
 
-#include "sessions/replay/replay_config.h"
+#include "simulation/replay/replay_config.h"
 
 namespace msmcal::replay {
 namespace {

@@ -1,11 +1,11 @@
-#include "sessions/orchestrator/demo_mcus.h"
+#include "simulation/twin/demo_mcus.h"
 
 #include <vector>
 
 #include "mocks/mcu/mock_mcu.h"
 #include "mocks/mcu/rig_hall_source.h"
 
-namespace msmcal::orchestrator {
+namespace msmcal::twin {
 
 struct DemoMcus::Impl {
   std::vector<std::unique_ptr<sim::MockMcu>> mcus;
@@ -17,8 +17,8 @@ DemoMcus::~DemoMcus() {
   for (auto& m : impl_->mcus) m->Stop();
 }
 
-std::string DemoMcus::Start(const sim::SimOptions& options, HallRun run) {
-  const sim::HallRecordingKind kind = run == HallRun::kBackground
+std::string DemoMcus::Start(const sim::SimOptions& options, orchestrator::HallRun run) {
+  const sim::HallRecordingKind kind = run == orchestrator::HallRun::kBackground
                                           ? sim::HallRecordingKind::kBackground
                                           : sim::HallRecordingKind::kActual;
   sim::MockMcuOptions mo;
@@ -33,4 +33,4 @@ std::string DemoMcus::Start(const sim::SimOptions& options, HallRun run) {
   return path;
 }
 
-}  // namespace msmcal::orchestrator
+}  // namespace msmcal::twin

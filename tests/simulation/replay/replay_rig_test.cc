@@ -3,14 +3,14 @@
 // Hall files, generator transcript, session.yaml); so does a replay of that replay; missing
 // recordings are refused naming the file. (Solving is covered by the CLI acceptance test.)
 // Runs in its own network namespace (the mock camera serves GigE Vision on 127.0.0.1:3956).
-#include "sessions/replay/replay_rig.h"
+#include "simulation/replay/replay_rig.h"
 
 #include <gtest/gtest.h>
 
 #include <string>
 
-#include "sessions/orchestrator/demo_rig.h"
 #include "sessions/replay/session_compare.h"
+#include "simulation/twin/demo_rig.h"
 
 namespace msmcal::replay {
 namespace {
@@ -63,9 +63,9 @@ void Replay(const fs::path& source, const fs::path& out) {
 TEST(ReplayRig, AReplayAndAReplayOfItReproduceTheAcquisition) {
   const fs::path a = FreshDir("a"), b = FreshDir("b"), c = FreshDir("c");
   {
-    orchestrator::DemoRigOptions ro;
+    twin::DemoRigOptions ro;
     ro.sim = TinySim();
-    orchestrator::DemoRig rig(ro);
+    twin::DemoRig rig(ro);
     orchestrator::OrchestratorOptions o = rig.MakeOrchestratorOptions(a);
     o.run_kind = "demo";
     o.run_config_yaml = sim::SimOptionsToYaml(ro.sim);

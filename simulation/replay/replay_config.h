@@ -15,7 +15,7 @@
 #include "drivers/generator/rig_config.h"
 #include "drivers/hall_mcu/hall_sensor.h"
 #include "mocks/rig/sim_options.h"
-#include "sessions/orchestrator/demo_rig.h"
+#include "simulation/twin/demo_rig.h"
 
 namespace msmcal::replay {
 
@@ -53,8 +53,8 @@ struct RecordedIdentity {
 };
 RecordedIdentity IdentityFromTranscript(const std::string& transcript, const std::string& unit);
 
-// The demo rig's generator configuration (sessions/orchestrator/demo_rig.h).
-using orchestrator::DemoGeneratorConfig;
+// The demo rig's generator configuration (simulation/twin/demo_rig.h).
+using twin::DemoGeneratorConfig;
 
 // The setup of a source run: for "demo" what DemoRig::MakeOrchestratorOptions sets; for "lab"
 // the rig configuration's `generators:` and (when present) `hall_mcu:` sections. The background

@@ -8,7 +8,7 @@
 #include "mocks/rig/sim_options.h"
 #include "sessions/orchestrator/rig_operator.h"
 
-namespace msmcal::orchestrator {
+namespace msmcal::twin {
 
 class DemoMcus {
  public:
@@ -18,11 +18,11 @@ class DemoMcus {
   DemoMcus& operator=(const DemoMcus&) = delete;
   // Starts a mock MCU streaming the simulator's Hall model for `run` as fast as it is read;
   // returns its pty device path.
-  std::string Start(const sim::SimOptions& options, HallRun run);
+  std::string Start(const sim::SimOptions& options, orchestrator::HallRun run);
 
  private:
   struct Impl;
   std::unique_ptr<Impl> impl_;
 };
 
-}  // namespace msmcal::orchestrator
+}  // namespace msmcal::twin

@@ -1,4 +1,4 @@
-#include "sessions/replay/replay_rig.h"
+#include "simulation/replay/replay_rig.h"
 
 #include <fstream>
 #include <sstream>
@@ -128,7 +128,7 @@ orchestrator::OrchestratorOptions ReplayRig::MakeOrchestratorOptions(
   orchestrator::OrchestratorOptions o;
   o.out_dir = out_dir;
   o.generators = GeneratorConfig();
-  o.camera_address = options_.camera_address;
+  o.camera = options_.camera_address;
   o.camera_frame_rate_hz = options_.camera_frame_rate_hz;
   o.mcu = setup_.mcu;
   o.mcu.device.clear();      // RunSession asks the world for the background MCU (a replaying mock)

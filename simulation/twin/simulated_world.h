@@ -21,14 +21,14 @@
 #include "mocks/rig/rig_simulator.h"
 #include "sessions/orchestrator/rig_operator.h"
 
-namespace msmcal::orchestrator {
+namespace msmcal::twin {
 
-class SimulatedWorld : public RigOperator {
+class SimulatedWorld : public orchestrator::RigOperator {
  public:
   // `hall_device` returns the device path of a mock MCU streaming the given recording (the demo
   // rig starts one per recording).
   SimulatedWorld(std::shared_ptr<const sim::RigSimulator> sim,
-                 std::function<std::string(HallRun)> hall_device);
+                 std::function<std::string(orchestrator::HallRun)> hall_device);
 
   // The frame source for the mock camera (renders the scene of the current setup).
   sim::FrameSource MakeFrameSource();
@@ -36,7 +36,7 @@ class SimulatedWorld : public RigOperator {
   void PrepareStep1Frame(size_t index) override;
   void PrepareStep2Frame(size_t index) override;
   bool FrameShowsCurrentSetup(const camera::FrameInfo& info) const override;
-  std::string PrepareHallRecording(HallRun run) override;
+  std::string PrepareHallRecording(orchestrator::HallRun run) override;
 
   const sim::RigSimulator& sim() const { return *sim_; }
   uint64_t generation() const;
@@ -45,7 +45,7 @@ class SimulatedWorld : public RigOperator {
   void Set(sim::RigFrameRef ref);
 
   std::shared_ptr<const sim::RigSimulator> sim_;
-  std::function<std::string(HallRun)> hall_device_;
+  std::function<std::string(orchestrator::HallRun)> hall_device_;
   mutable std::mutex mu_;
   sim::RigFrameRef ref_{1, 0};
   uint64_t generation_ = 0;
@@ -53,4 +53,4 @@ class SimulatedWorld : public RigOperator {
   std::deque<std::pair<int64_t, uint64_t>> filled_;
 };
 
-}  // namespace msmcal::orchestrator
+}  // namespace msmcal::twin

@@ -12,15 +12,15 @@
 #include "drivers/generator/rig_config.h"
 #include "mocks/camera/mock_gv_camera.h"
 #include "mocks/rig/rig_simulator.h"
-#include "sessions/orchestrator/demo_mcus.h"
 #include "sessions/orchestrator/orchestrator.h"
-#include "sessions/orchestrator/simulated_world.h"
+#include "simulation/twin/demo_mcus.h"
+#include "simulation/twin/simulated_world.h"
 
 namespace msmcal::sim {
 class MockGeneratorPair;  // mocks/generator/mock_server.h
 }  // namespace msmcal::sim
 
-namespace msmcal::orchestrator {
+namespace msmcal::twin {
 
 struct DemoRigOptions {
   sim::SimOptions sim;
@@ -54,7 +54,8 @@ class DemoRig {
   // mirror's drive, and the simulator's drive frequencies and amplitudes.
   gen::RigGeneratorConfig GeneratorConfig() const;
   // Orchestrator options pointing at this rig's instruments.
-  OrchestratorOptions MakeOrchestratorOptions(const std::filesystem::path& out_dir) const;
+  orchestrator::OrchestratorOptions MakeOrchestratorOptions(
+      const std::filesystem::path& out_dir) const;
   // The session plan (trigger table, frame lists; no images, no Hall data).
   dataset::Recording Plan() const;
 
@@ -68,4 +69,4 @@ class DemoRig {
   mutable std::string background_device_;  // started by MakeOrchestratorOptions, handed out once
 };
 
-}  // namespace msmcal::orchestrator
+}  // namespace msmcal::twin

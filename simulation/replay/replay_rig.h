@@ -19,8 +19,8 @@
 #include "mocks/camera/mock_gv_camera.h"
 #include "processing/dataset/recording.h"
 #include "sessions/orchestrator/orchestrator.h"
-#include "sessions/replay/replay_config.h"
-#include "sessions/replay/replay_world.h"
+#include "simulation/replay/replay_config.h"
+#include "simulation/replay/replay_world.h"
 
 namespace msmcal::sim {
 class MockGeneratorPair;  // mocks/generator/mock_server.h

@@ -1,4 +1,4 @@
-#include "sessions/replay/replay_world.h"
+#include "simulation/replay/replay_world.h"
 
 #include <cstring>
 #include <opencv2/imgcodecs.hpp>

@@ -1,13 +1,11 @@
-#include "sessions/orchestrator/simulated_world.h"
+#include "simulation/twin/simulated_world.h"
 
 #include <stdexcept>
 
-namespace msmcal::orchestrator {
-
-const char* ToString(HallRun run) { return run == HallRun::kBackground ? "background" : "actual"; }
+namespace msmcal::twin {
 
 SimulatedWorld::SimulatedWorld(std::shared_ptr<const sim::RigSimulator> sim,
-                               std::function<std::string(HallRun)> hall_device)
+                               std::function<std::string(orchestrator::HallRun)> hall_device)
     : sim_(std::move(sim)), hall_device_(std::move(hall_device)) {
   if (!sim_) throw std::invalid_argument("SimulatedWorld: no simulator");
 }
@@ -59,11 +57,13 @@ bool SimulatedWorld::FrameShowsCurrentSetup(const camera::FrameInfo& info) const
   return false;
 }
 
-std::string SimulatedWorld::PrepareHallRecording(HallRun run) { return hall_device_(run); }
+std::string SimulatedWorld::PrepareHallRecording(orchestrator::HallRun run) {
+  return hall_device_(run);
+}
 
 uint64_t SimulatedWorld::generation() const {
   std::lock_guard<std::mutex> lock(mu_);
   return generation_;
 }
 
-}  // namespace msmcal::orchestrator
+}  // namespace msmcal::twin
