@@ -21,6 +21,11 @@ class CsvReader {
   // empty, or its header is none of `headers`.
   CsvReader(const std::filesystem::path& path, std::string display,
             const std::vector<const char*>& headers);
+  // The same on a file's contents already in memory (parsers of text, e.g. the fuzz targets).
+  struct Text {
+    std::string contents;
+  };
+  CsvReader(Text text, std::string display, const std::vector<const char*>& headers);
 
   // Which of the constructor's `headers` the file has.
   int header_index() const { return header_index_; }
@@ -39,6 +44,7 @@ class CsvReader {
   long long Int64(size_t i) const;
 
  private:
+  void ReadHeader(const std::vector<const char*>& headers);
   std::string HeaderText() const;
   bool NextLine();
 

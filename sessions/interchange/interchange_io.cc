@@ -135,6 +135,15 @@ std::string NormaliseHeader(std::string_view line) {
 CsvReader::CsvReader(const fs::path& path, std::string display,
                      const std::vector<const char*>& headers)
     : display_(std::move(display)), text_(ReadWholeFile(path, display_)) {
+  ReadHeader(headers);
+}
+
+CsvReader::CsvReader(Text text, std::string display, const std::vector<const char*>& headers)
+    : display_(std::move(display)), text_(std::move(text.contents)) {
+  ReadHeader(headers);
+}
+
+void CsvReader::ReadHeader(const std::vector<const char*>& headers) {
   if (!NextLine()) {
     Fail(display_, 1, "empty file, expected header " + Quote(headers.front()));
   }
@@ -231,9 +240,8 @@ bool CsvReader::NextLine() {
 
 namespace {
 
-std::vector<dataset::HallReading> ReadHallReadings(const fs::path& path,
-                                                   const std::string& display) {
-  CsvReader csv(path, display, {kHallHeader});
+std::vector<dataset::HallReading> HallReadingRows(CsvReader& csv) {
+  const std::string& display = csv.display();
   std::vector<dataset::HallReading> out;
   while (csv.Next()) {
     dataset::HallReading r;
@@ -252,8 +260,8 @@ std::vector<dataset::HallReading> ReadHallReadings(const fs::path& path,
   return out;
 }
 
-std::vector<double> ReadClockEdges(const fs::path& path, const std::string& display) {
-  CsvReader csv(path, display, {kClockHeader});
+std::vector<double> ClockEdgeRows(CsvReader& csv) {
+  const std::string& display = csv.display();
   std::vector<double> out;
   while (csv.Next()) {
     const double t = csv.Double(0);
@@ -265,6 +273,17 @@ std::vector<double> ReadClockEdges(const fs::path& path, const std::string& disp
     out.push_back(t);
   }
   return out;
+}
+
+std::vector<dataset::HallReading> ReadHallReadings(const fs::path& path,
+                                                   const std::string& display) {
+  CsvReader csv(path, display, {kHallHeader});
+  return HallReadingRows(csv);
+}
+
+std::vector<double> ReadClockEdges(const fs::path& path, const std::string& display) {
+  CsvReader csv(path, display, {kClockHeader});
+  return ClockEdgeRows(csv);
 }
 
 dataset::HallRecording ReadHall(const fs::path& readings, const std::string& readings_display,
@@ -286,8 +305,7 @@ dataset::HallRecording ReadHall(const fs::path& readings, const std::string& rea
   return hall;
 }
 
-dataset::MargRecording ReadMarg(const fs::path& path, const std::string& display) {
-  CsvReader csv(path, display, {kMargFullHeader, kMargMagHeader});
+dataset::MargRecording MargRows(CsvReader& csv) {
   dataset::MargRecording rec;
   rec.has_inertial = csv.header_index() == 0;
   while (csv.Next()) {
@@ -311,6 +329,11 @@ dataset::MargRecording ReadMarg(const fs::path& path, const std::string& display
     rec.samples.push_back(s);
   }
   return rec;
+}
+
+dataset::MargRecording ReadMarg(const fs::path& path, const std::string& display) {
+  CsvReader csv(path, display, {kMargFullHeader, kMargMagHeader});
+  return MargRows(csv);
 }
 
 std::string FormatHallReadings(const std::vector<dataset::HallReading>& readings) {
@@ -1103,5 +1126,31 @@ dataset::MargRecording ReadMargCsv(const std::filesystem::path& file) {
 void WriteMargCsv(const std::filesystem::path& file, const dataset::MargRecording& recording) {
   WriteFileAtomically(file, FormatMarg(recording));
 }
+
+std::vector<dataset::HallReading> ParseHallReadingsCsv(const std::string& text,
+                                                       const std::string& display_name) {
+  CsvReader csv(CsvReader::Text{text}, display_name, {kHallHeader});
+  return HallReadingRows(csv);
+}
+
+std::vector<double> ParseClockEdgesCsv(const std::string& text, const std::string& display_name) {
+  CsvReader csv(CsvReader::Text{text}, display_name, {kClockHeader});
+  return ClockEdgeRows(csv);
+}
+
+dataset::MargRecording ParseMargCsv(const std::string& text, const std::string& display_name) {
+  CsvReader csv(CsvReader::Text{text}, display_name, {kMargFullHeader, kMargMagHeader});
+  return MargRows(csv);
+}
+
+std::string FormatHallReadingsCsv(const std::vector<dataset::HallReading>& readings) {
+  return FormatHallReadings(readings);
+}
+
+std::string FormatClockEdgesCsv(const std::vector<double>& edges) {
+  return FormatClockEdges(edges);
+}
+
+std::string FormatMargCsv(const dataset::MargRecording& recording) { return FormatMarg(recording); }
 
 }  // namespace msmcal::interchange

@@ -62,6 +62,16 @@ void WriteHallReadingsCsv(const std::filesystem::path& file,
 dataset::MargRecording ReadMargCsv(const std::filesystem::path& file);
 void WriteMargCsv(const std::filesystem::path& file, const dataset::MargRecording& recording);
 
+// The CSV readers and writers above on text (`display_name` stands for the file in messages):
+// ParseX(FormatX(x), name) == x.
+std::vector<dataset::HallReading> ParseHallReadingsCsv(const std::string& text,
+                                                       const std::string& display_name);
+std::vector<double> ParseClockEdgesCsv(const std::string& text, const std::string& display_name);
+dataset::MargRecording ParseMargCsv(const std::string& text, const std::string& display_name);
+std::string FormatHallReadingsCsv(const std::vector<dataset::HallReading>& readings);
+std::string FormatClockEdgesCsv(const std::vector<double>& edges);
+std::string FormatMargCsv(const dataset::MargRecording& recording);
+
 // results/ files: sessions/results/results_files.h.
 
 // Writes `contents` to `file` atomically: temporary in the same folder, fsync, rename, fsync of

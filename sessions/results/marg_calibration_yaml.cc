@@ -3,6 +3,8 @@
 #include <yaml-cpp/yaml.h>
 
 #include <cmath>
+#include <fstream>
+#include <sstream>
 #include <stdexcept>
 #include <tuple>
 
@@ -125,11 +127,17 @@ Eigen::Vector3d ReadVec(const fs::path& file, const YAML::Node& parent, const st
 }  // namespace
 
 MargCalibrationFile ReadMargCalibrationYaml(const fs::path& file) {
+  std::ifstream in(file, std::ios::binary);
+  if (!in) throw interchange::InterchangeError(file.string() + ": cannot open");
+  std::ostringstream text;
+  text << in.rdbuf();
+  return ParseMargCalibrationYaml(text.str(), file);
+}
+
+MargCalibrationFile ParseMargCalibrationYaml(const std::string& text, const fs::path& file) {
   YAML::Node root;
   try {
-    root = YAML::LoadFile(file.string());
-  } catch (const YAML::BadFile&) {
-    throw interchange::InterchangeError(file.string() + ": cannot open");
+    root = YAML::Load(text);
   } catch (const YAML::Exception& e) {
     throw interchange::InterchangeError(file.string() + ":" + std::to_string(e.mark.line + 1) +
                                         ": " + e.msg);

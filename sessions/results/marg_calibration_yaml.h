@@ -31,5 +31,8 @@ std::string FormatMargCalibrationYaml(const MargCalibrationFile& file,
 // Throws interchange::InterchangeError "file:line: sensors.magnetometer.offset: expected a
 // sequence of 3 numbers".
 MargCalibrationFile ReadMargCalibrationYaml(const std::filesystem::path& file);
+// The same on the file's text (`file` names it in messages).
+MargCalibrationFile ParseMargCalibrationYaml(const std::string& text,
+                                             const std::filesystem::path& file);
 
 }  // namespace msmcal::results

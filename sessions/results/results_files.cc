@@ -5,6 +5,7 @@
 #include <cmath>
 #include <fstream>
 #include <nlohmann/json.hpp>
+#include <sstream>
 #include <stdexcept>
 
 #include "common/text_io.h"
@@ -46,8 +47,9 @@ void AppendRow(std::string* out, std::initializer_list<int> ints,
 
 }  // namespace
 
-std::vector<dataset::MirrorPlaneRow> ReadMirrorPlanesCsv(const fs::path& file) {
-  interchange::CsvReader csv(file, file.string(), {kMirrorPlanesHeader});
+namespace {
+
+std::vector<dataset::MirrorPlaneRow> MirrorPlaneRows(interchange::CsvReader& csv) {
   std::vector<dataset::MirrorPlaneRow> rows;
   while (csv.Next()) {
     dataset::MirrorPlaneRow r;
@@ -66,19 +68,7 @@ std::vector<dataset::MirrorPlaneRow> ReadMirrorPlanesCsv(const fs::path& file) {
   return rows;
 }
 
-void WriteMirrorPlanesCsv(const fs::path& file, const std::vector<dataset::MirrorPlaneRow>& rows) {
-  std::string out = std::string(kMirrorPlanesHeader) + "\n";
-  for (const auto& r : rows) {
-    const auto& n = r.plane_in_world.n;
-    AppendRow(&out, {r.j},
-              {r.t_s, n.x(), n.y(), n.z(), r.plane_in_world.d, r.alpha_deg, r.beta_deg, r.trans_mm,
-               r.sigma_alpha_deg, r.sigma_beta_deg, r.sigma_trans_mm});
-  }
-  common::WriteFileAtomically(file, out);
-}
-
-std::vector<dataset::BeamRow> ReadBeamsCsv(const fs::path& file) {
-  interchange::CsvReader csv(file, file.string(), {kBeamsHeader});
+std::vector<dataset::BeamRow> BeamRows(interchange::CsvReader& csv) {
   std::vector<dataset::BeamRow> rows;
   while (csv.Next()) {
     dataset::BeamRow r;
@@ -90,15 +80,7 @@ std::vector<dataset::BeamRow> ReadBeamsCsv(const fs::path& file) {
   return rows;
 }
 
-void WriteBeamsCsv(const fs::path& file, const std::vector<dataset::BeamRow>& rows) {
-  std::string out = std::string(kBeamsHeader) + "\n";
-  for (const auto& r : rows)
-    AppendRow(&out, {r.beam}, {r.p.x(), r.p.y(), r.p.z(), r.v.x(), r.v.y(), r.v.z()});
-  common::WriteFileAtomically(file, out);
-}
-
-std::vector<dataset::ValidationRow> ReadValidationCsv(const fs::path& file) {
-  interchange::CsvReader csv(file, file.string(), {kValidationHeader});
+std::vector<dataset::ValidationRow> ValidationRows(interchange::CsvReader& csv) {
   std::vector<dataset::ValidationRow> rows;
   while (csv.Next()) {
     dataset::ValidationRow r;
@@ -111,10 +93,76 @@ std::vector<dataset::ValidationRow> ReadValidationCsv(const fs::path& file) {
   return rows;
 }
 
-void WriteValidationCsv(const fs::path& file, const std::vector<dataset::ValidationRow>& rows) {
+}  // namespace
+
+std::vector<dataset::MirrorPlaneRow> ReadMirrorPlanesCsv(const fs::path& file) {
+  interchange::CsvReader csv(file, file.string(), {kMirrorPlanesHeader});
+  return MirrorPlaneRows(csv);
+}
+
+std::vector<dataset::MirrorPlaneRow> ParseMirrorPlanesCsv(const std::string& text,
+                                                          const std::string& display_name) {
+  interchange::CsvReader csv(interchange::CsvReader::Text{text}, display_name,
+                             {kMirrorPlanesHeader});
+  return MirrorPlaneRows(csv);
+}
+
+std::string FormatMirrorPlanesCsv(const std::vector<dataset::MirrorPlaneRow>& rows) {
+  std::string out = std::string(kMirrorPlanesHeader) + "\n";
+  for (const auto& r : rows) {
+    const auto& n = r.plane_in_world.n;
+    AppendRow(&out, {r.j},
+              {r.t_s, n.x(), n.y(), n.z(), r.plane_in_world.d, r.alpha_deg, r.beta_deg, r.trans_mm,
+               r.sigma_alpha_deg, r.sigma_beta_deg, r.sigma_trans_mm});
+  }
+  return out;
+}
+
+void WriteMirrorPlanesCsv(const fs::path& file, const std::vector<dataset::MirrorPlaneRow>& rows) {
+  common::WriteFileAtomically(file, FormatMirrorPlanesCsv(rows));
+}
+
+std::vector<dataset::BeamRow> ReadBeamsCsv(const fs::path& file) {
+  interchange::CsvReader csv(file, file.string(), {kBeamsHeader});
+  return BeamRows(csv);
+}
+
+std::vector<dataset::BeamRow> ParseBeamsCsv(const std::string& text,
+                                            const std::string& display_name) {
+  interchange::CsvReader csv(interchange::CsvReader::Text{text}, display_name, {kBeamsHeader});
+  return BeamRows(csv);
+}
+
+std::string FormatBeamsCsv(const std::vector<dataset::BeamRow>& rows) {
+  std::string out = std::string(kBeamsHeader) + "\n";
+  for (const auto& r : rows)
+    AppendRow(&out, {r.beam}, {r.p.x(), r.p.y(), r.p.z(), r.v.x(), r.v.y(), r.v.z()});
+  return out;
+}
+
+void WriteBeamsCsv(const fs::path& file, const std::vector<dataset::BeamRow>& rows) {
+  common::WriteFileAtomically(file, FormatBeamsCsv(rows));
+}
+
+std::vector<dataset::ValidationRow> ReadValidationCsv(const fs::path& file) {
+  interchange::CsvReader csv(file, file.string(), {kValidationHeader});
+  return ValidationRows(csv);
+}
+
+std::vector<dataset::ValidationRow> ParseValidationCsv(const std::string& text,
+                                                       const std::string& display_name) {
+  interchange::CsvReader csv(interchange::CsvReader::Text{text}, display_name, {kValidationHeader});
+  return ValidationRows(csv);
+}
+
+std::string FormatValidationCsv(const std::vector<dataset::ValidationRow>& rows) {
   std::string out = std::string(kValidationHeader) + "\n";
   for (const auto& r : rows) AppendRow(&out, {r.beam, r.j}, {r.err_px, r.err_deg});
-  common::WriteFileAtomically(file, out);
+  return out;
+}
+
+void WriteValidationCsv(const fs::path& file, const std::vector<dataset::ValidationRow>& rows) {
+  common::WriteFileAtomically(file, FormatValidationCsv(rows));
 }
 
 std::vector<ValidationDetailRow> ValidationDetailRows(
@@ -487,9 +535,17 @@ Eigen::Vector3d Vec3(const YAML::Node& n, const std::string& file, const std::st
 
 HallModelFile ReadHallModelYaml(const fs::path& path) {
   const std::string file = path.string();
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw interchange::InterchangeError(file + ": cannot open");
+  std::ostringstream text;
+  text << in.rdbuf();
+  return ParseHallModelYaml(text.str(), file);
+}
+
+HallModelFile ParseHallModelYaml(const std::string& text, const std::string& file) {
   YAML::Node y;
   try {
-    y = YAML::LoadFile(file);
+    y = YAML::Load(text);
   } catch (const YAML::Exception& e) {
     throw interchange::InterchangeError(file + ": " + e.what());
   }

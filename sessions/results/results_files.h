@@ -37,6 +37,17 @@ void WriteBeamsCsv(const std::filesystem::path& file, const std::vector<dataset:
 std::vector<dataset::ValidationRow> ReadValidationCsv(const std::filesystem::path& file);
 void WriteValidationCsv(const std::filesystem::path& file,
                         const std::vector<dataset::ValidationRow>& rows);
+// The three above on text (`display_name` stands for the file in messages):
+// ParseXCsv(FormatXCsv(rows), name) == rows.
+std::vector<dataset::MirrorPlaneRow> ParseMirrorPlanesCsv(const std::string& text,
+                                                          const std::string& display_name);
+std::vector<dataset::BeamRow> ParseBeamsCsv(const std::string& text,
+                                            const std::string& display_name);
+std::vector<dataset::ValidationRow> ParseValidationCsv(const std::string& text,
+                                                       const std::string& display_name);
+std::string FormatMirrorPlanesCsv(const std::vector<dataset::MirrorPlaneRow>& rows);
+std::string FormatBeamsCsv(const std::vector<dataset::BeamRow>& rows);
+std::string FormatValidationCsv(const std::vector<dataset::ValidationRow>& rows);
 
 // results/validation_detail.csv (native): per held-out dot, the proposed and the baseline error,
 // the predicted sigma and the error normalised by it.
@@ -108,6 +119,8 @@ struct HallModelFile {
 // Errors name the file and the field: "hall_model.yaml: field 'delta_t_s': expected a number
 // (line 3)".
 HallModelFile ReadHallModelYaml(const std::filesystem::path& file);
+// The same on the file's text (`file` names it in messages).
+HallModelFile ParseHallModelYaml(const std::string& text, const std::string& file);
 
 // results/hall_poses.csv: mcu_time_us,t_s,alpha_deg,beta_deg,trans_mm (t_s: generator time of
 // the pose, i.e. of the reading minus the model's delta_t).

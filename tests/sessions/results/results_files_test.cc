@@ -4,6 +4,7 @@
 
 #include <cmath>
 #include <limits>
+#include <string>
 
 #include "sessions/interchange/interchange_io.h"
 #include "tests/testing/test_files.h"
@@ -73,6 +74,24 @@ TEST(ResultsCsv, BeamsAndValidationRoundTrip) {
   EXPECT_EQ(val[1].beam, 4);
   EXPECT_EQ(val[1].j, 12);
   EXPECT_EQ(val[1].err_deg, 2e-4);
+}
+
+TEST(ResultsCsv, TheTextEntryPointsReadWhatTheFormattersWrite) {
+  const std::vector<dataset::BeamRow> beams = {{2, {1.5, -2, 3e5}, {0, 0.6, 0.8}}};
+  const std::string text = FormatBeamsCsv(beams);
+  EXPECT_EQ(text, "beam,px,py,pz,vx,vy,vz\n2,1.5,-2,3e+05,0,0.6,0.8\n");
+  EXPECT_EQ(FormatBeamsCsv(ParseBeamsCsv(text, "beams.csv")), text);
+  const std::string val = FormatValidationCsv({{3, 11, 0.25, 1e-4}});
+  EXPECT_EQ(FormatValidationCsv(ParseValidationCsv(val, "validation.csv")), val);
+  dataset::MirrorPlaneRow r;
+  r.j = 7;
+  r.t_s = 0.1;
+  const std::string planes = FormatMirrorPlanesCsv({r});
+  EXPECT_EQ(FormatMirrorPlanesCsv(ParseMirrorPlanesCsv(planes, "mirror_planes.csv")), planes);
+  EXPECT_NE(ErrorOf([] {
+              ParseBeamsCsv("beam,px\n", "results/beams.csv");
+            }).find("results/beams.csv:1: header is"),
+            std::string::npos);
 }
 
 TEST(ResultsCsv, ValidationDetailRoundTripFromTheSolversRows) {
