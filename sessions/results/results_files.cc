@@ -514,6 +514,9 @@ namespace {
 
 YAML::Node Need(const YAML::Node& n, const std::string& key, const std::string& file,
                 const std::string& path) {
+  if (!n.IsMap()) {
+    Fail(file, path.empty() ? "(root)" : path.substr(0, path.size() - 1), "expected a mapping");
+  }
   if (!n[key]) Fail(file, path + key, "missing");
   return n[key];
 }
@@ -524,6 +527,13 @@ double Num(const YAML::Node& n, const std::string& file, const std::string& fiel
   } catch (const YAML::Exception&) {
     Fail(file, field, "expected a number (line " + std::to_string(n.Mark().line + 1) + ")");
   }
+}
+
+std::string Str(const YAML::Node& n, const std::string& file, const std::string& field) {
+  if (!n.IsScalar()) {
+    Fail(file, field, "expected a text (line " + std::to_string(n.Mark().line + 1) + ")");
+  }
+  return n.Scalar();
 }
 
 Eigen::Vector3d Vec3(const YAML::Node& n, const std::string& file, const std::string& field) {
@@ -549,11 +559,11 @@ HallModelFile ParseHallModelYaml(const std::string& text, const std::string& fil
   } catch (const YAML::Exception& e) {
     throw interchange::InterchangeError(file + ": " + e.what());
   }
-  const std::string format = Need(y, "format", file, "").as<std::string>();
+  const std::string format = Str(Need(y, "format", file, ""), file, "format");
   if (format != "msmcal-hall-model/1")
     Fail(file, "format", "expected msmcal-hall-model/1, got '" + format + "'");
   HallModelFile l;
-  const std::string kind = Need(y, "model", file, "").as<std::string>();
+  const std::string kind = Str(Need(y, "model", file, ""), file, "model");
   if (!hall::ParseHallModelKind(kind, &l.model.kind))
     Fail(file, "model", "unknown model '" + kind + "'");
   l.model.delta_t_s = Num(Need(y, "delta_t_s", file, ""), file, "delta_t_s");
@@ -588,6 +598,7 @@ HallModelFile ParseHallModelYaml(const std::string& text, const std::string& fil
       Num(Need(bp, "period_s", file, "background_profile."), file, "background_profile.period_s");
   const YAML::Node bins = Need(bp, "bins_uT", file, "background_profile.");
   std::vector<Eigen::Vector3d> b;
+  if (!bins.IsSequence()) Fail(file, "background_profile.bins_uT", "expected a list");
   for (const auto& n : bins) b.push_back(Vec3(n, file, "background_profile.bins_uT"));
   if (const YAML::Node tr = y["test_rms"]) {
     if (!tr.IsMap()) Fail(file, "test_rms", "expected a map of alpha_deg, beta_deg, trans_mm");

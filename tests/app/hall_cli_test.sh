@@ -57,4 +57,19 @@ if "$msmcal" hall predict "$dir/bad.yaml" "$dir/s/hall/actual.csv" "$dir/p2.csv"
   echo "expected a failure"; exit 1
 fi
 grep -q "bad.yaml" "$dir/err2" && grep -q "delta_t_s" "$dir/err2"
+# Fuzz findings (docs/fuzzing.md): a document or section that is not a mapping, a format that is
+# not a text and bins that are not a list name the file and the field (yaml-cpp's "operator[]
+# call on a scalar" / "bad conversion" escaped without them).
+printf 'abc\n' > "$dir/scalar.yaml"
+printf 'format: [1, 2]\n' > "$dir/format.yaml"
+sed 's/^parameters:.*/parameters: 1/' "$dir/s/results/hall_model.yaml" > "$dir/section.yaml"
+sed '/^  bins_uT:/,$d' "$dir/s/results/hall_model.yaml" > "$dir/bins.yaml"
+echo "  bins_uT: {a: 1}" >> "$dir/bins.yaml"
+for f in scalar:root format:format section:parameters bins:bins_uT; do
+  if "$msmcal" hall predict "$dir/${f%%:*}.yaml" "$dir/s/hall/actual.csv" "$dir/p3.csv" > "$dir/err3" 2>&1; then
+    echo "expected a failure for ${f%%:*}.yaml"; exit 1
+  fi
+  grep -q "${f%%:*}.yaml" "$dir/err3" && grep -q "${f#*:}" "$dir/err3" ||
+    { echo "${f%%:*}.yaml:"; cat "$dir/err3"; exit 1; }
+done
 echo "1 passed, 0 failed"

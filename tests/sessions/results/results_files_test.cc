@@ -5,6 +5,7 @@
 #include <cmath>
 #include <limits>
 #include <string>
+#include <utility>
 
 #include "sessions/interchange/interchange_io.h"
 #include "tests/testing/test_files.h"
@@ -290,6 +291,33 @@ TEST(HallModelYaml, ABadFieldIsNamed) {
   EXPECT_NE(e.find(file.string() + ": field 'delta_t_s': expected a number (line "),
             std::string::npos)
       << e;
+}
+
+// Fuzz findings (docs/fuzzing.md): a document or section that is not a mapping, a format or model
+// that is not a text and bins that are not a list name the file and the field (yaml-cpp's
+// "operator[] call on a scalar" / "bad conversion" escaped without them).
+TEST(HallModelYaml, AWrongShapeNamesTheFileAndTheField) {
+  const std::string good = FormatHallModelYaml(SampleHallResult(), {});
+  EXPECT_NO_THROW(ParseHallModelYaml(good, "hall_model.yaml"));
+  const std::string head = "format: msmcal-hall-model/1\nmodel: linear\ndelta_t_s: 0\n";
+  std::string bins = good;
+  const size_t at = bins.find("bins_uT:");
+  ASSERT_NE(at, std::string::npos) << good;
+  bins = bins.substr(0, at) + "bins_uT: {a: 1}\n";
+  const std::pair<std::string, std::string> cases[] = {
+      {"abc\n", "field '(root)': expected a mapping"},
+      {"- 1\n", "field '(root)': expected a mapping"},
+      {"format: [1, 2]\n", "field 'format': expected a text"},
+      {"format: msmcal-hall-model/1\nmodel: {a: 1}\n", "field 'model': expected a text"},
+      {head + "parameters: 1\n", "field 'parameters': expected a mapping"},
+      {head + "parameters: [1]\n", "field 'parameters': expected a mapping"},
+      {bins, "field 'background_profile.bins_uT': expected a list"},
+  };
+  for (const auto& [text, expected] : cases) {
+    const std::string e = ErrorOf([&] { ParseHallModelYaml(text, "m.yaml"); });
+    EXPECT_EQ(e.rfind("m.yaml: ", 0), 0u) << text << " -> " << e;
+    EXPECT_NE(e.find(expected), std::string::npos) << text << " -> " << e;
+  }
 }
 
 }  // namespace
