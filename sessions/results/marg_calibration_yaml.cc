@@ -142,19 +142,26 @@ MargCalibrationFile ParseMargCalibrationYaml(const std::string& text, const fs::
     throw interchange::InterchangeError(file.string() + ":" + std::to_string(e.mark.line + 1) +
                                         ": " + e.msg);
   }
+  if (!root.IsMap()) YamlFail(file, root, "expected a mapping");
   if (!root["format"] || root["format"].as<std::string>("") != kCalibrationFormat) {
     YamlFail(file, root["format"] ? root["format"] : root,
              std::string("format: expected '") + kCalibrationFormat + "'");
   }
   MargCalibrationFile out;
-  if (root["field_elevation_deg"])
-    out.field_elevation_deg = root["field_elevation_deg"].as<double>();
+  if (const YAML::Node e = root["field_elevation_deg"]) {
+    try {
+      out.field_elevation_deg = e.as<double>();
+    } catch (const YAML::Exception&) {
+      YamlFail(file, e, "field_elevation_deg: expected a number");
+    }
+  }
   const YAML::Node sensors = root["sensors"];
   if (!sensors || !sensors.IsMap()) YamlFail(file, root, "sensors: expected a map");
   auto read_sensor = [&](const char* name, std::optional<marg::SensorCalibration>* dst) {
     const YAML::Node s = sensors[name];
     if (!s) return;
     const std::string where = std::string("sensors.") + name;
+    if (!s.IsMap()) YamlFail(file, s, where + ": expected a mapping");
     marg::SensorCalibration c;
     // Sequences of sequences: index rows by number.
     c.offset = ReadVec(file, s, "offset", where);

@@ -40,4 +40,16 @@ if "$msmcal" marg apply "$dir/bad.yaml" "$dir/m/marg/validation.csv" "$dir/x.csv
   echo "expected a failure"; exit 1
 fi
 grep -q "bad.yaml" "$dir/err"
+# Fuzz findings (docs/fuzzing.md): a document that is not a mapping, a sensor that is not a
+# mapping and a field_elevation_deg that is not a number name the file and line (yaml-cpp's
+# "operator[] call on a scalar" / "bad conversion" escaped without them).
+printf 'abc\n' > "$dir/scalar.yaml"
+printf 'format: msmcal-marg-calibration/1\nsensors: {magnetometer: 1}\n' > "$dir/sensor.yaml"
+printf 'format: msmcal-marg-calibration/1\nfield_elevation_deg: [x]\nsensors: {}\n' > "$dir/elev.yaml"
+for f in scalar sensor elev; do
+  if "$msmcal" marg apply "$dir/$f.yaml" "$dir/m/marg/validation.csv" "$dir/x.csv" > "$dir/err" 2>&1; then
+    echo "expected a failure for $f.yaml"; exit 1
+  fi
+  grep -q "$f.yaml:[0-9]" "$dir/err" || { echo "$f.yaml: no file:line in"; cat "$dir/err"; exit 1; }
+done
 echo "1 passed, 0 failed"

@@ -2,6 +2,9 @@
 
 #include <gtest/gtest.h>
 
+#include <string>
+#include <utility>
+
 #include "sessions/interchange/interchange_io.h"
 #include "tests/testing/test_files.h"
 
@@ -54,6 +57,29 @@ TEST(MargCalibrationYaml, ABadNumberIsNamedWithItsLine) {
     EXPECT_NE(std::string(e.what()).find("sensors.magnetometer.offset[0]: expected a number"),
               std::string::npos)
         << e.what();
+  }
+}
+
+// Fuzz findings (docs/fuzzing.md): a document or sensor that is not a mapping and a
+// field_elevation_deg that is not a number name the file and the line (yaml-cpp's "operator[]
+// call on a scalar" / "bad conversion" escaped without them).
+TEST(MargCalibrationYaml, AWrongShapeNamesTheFileAndTheLine) {
+  const std::pair<const char*, const char*> cases[] = {
+      {"abc\n", "m.yaml:1: expected a mapping"},
+      {"- 1\n", "m.yaml:1: expected a mapping"},
+      {"format: msmcal-marg-calibration/1\nsensors: {magnetometer: 1}\n",
+       "m.yaml:2: sensors.magnetometer: expected a mapping"},
+      {"format: msmcal-marg-calibration/1\nfield_elevation_deg: [x]\nsensors: {}\n",
+       "m.yaml:2: field_elevation_deg: expected a number"},
+  };
+  for (const auto& [text, expected] : cases) {
+    try {
+      ParseMargCalibrationYaml(text, "m.yaml");
+      ADD_FAILURE() << "accepted: " << text;
+    } catch (const interchange::InterchangeError& e) {
+      EXPECT_NE(std::string(e.what()).find(expected), std::string::npos)
+          << text << " -> " << e.what();
+    }
   }
 }
 
