@@ -178,6 +178,10 @@ class Parser {
   void CheckUnknown() {
     const Frame& f = stack_.back();
     for (const auto& kv : f.node) {
+      if (!kv.first.IsScalar()) {
+        throw std::runtime_error(Where(source_, kv.first, f.prefix + "?") +
+                                 ": a key must be a name");
+      }
       const std::string k = kv.first.as<std::string>();
       if (!f.seen.count(k)) {
         throw std::runtime_error(Where(source_, kv.first, f.prefix + k) + ": unknown key");

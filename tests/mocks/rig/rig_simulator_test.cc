@@ -92,6 +92,16 @@ TEST(SimOptionsTest, OverridesAndErrorsNameTheField) {
     EXPECT_NE(std::string(e.what()).find("bad.yaml:3"), std::string::npos) << e.what();
     EXPECT_NE(std::string(e.what()).find("mirror.fast.frequncy_hz"), std::string::npos) << e.what();
   }
+  // Fuzz finding (docs/fuzzing.md): a key that is not a name (a null key with an anchor, a list)
+  // escaped as yaml-cpp's "bad conversion" without the file.
+  for (const char* text : {"beams: {count: 2, &a : [1]}\n", "beams: {[1, 2]: 3}\n"}) {
+    try {
+      ParseSimOptions(text, "key.yaml");
+      FAIL() << "key accepted: " << text;
+    } catch (const std::runtime_error& e) {
+      EXPECT_NE(std::string(e.what()).find("key.yaml:1"), std::string::npos) << e.what();
+    }
+  }
   try {
     ParseSimOptions("world_board: {cols: 10}\n", "b.yaml");
     FAIL() << "even cols accepted";
