@@ -1,5 +1,5 @@
-// libFuzzer target for the Hall MCU frame decoder and stream tracker. Built and run by
-// scripts/fuzz-hall-decoder (clang -fsanitize=fuzzer,address,undefined), not by the main build.
+// libFuzzer target for the Hall MCU frame decoder and stream tracker. Built by fuzz/CMakeLists.txt
+// (-DMSMCAL_FUZZ=ON, clang) and run by scripts/fuzz; seeds in fuzz/corpus/hall_decoder/.
 //
 // Input: byte 0 picks the chunk size the stream is fed in (1..64), the rest is the byte stream.
 // Checks: no crash / over-read (sanitizers), termination (every Next() consumes or stops), bounded

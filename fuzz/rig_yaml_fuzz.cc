@@ -1,0 +1,24 @@
+// libFuzzer target: config/rig.yaml, both of its readers: the generator part
+// (ParseRigGeneratorConfig) and the Hall MCU part (ParseHallMcuConfig).
+//
+// Checks: each reader returns or throws std::runtime_error naming the file ("rig.yaml:LINE");
+// Validate() of an accepted generator configuration returns (empty or a message) without
+// throwing.
+#include <cstdint>
+#include <string>
+
+#include "drivers/generator/rig_config.h"
+#include "drivers/hall_mcu/hall_mcu_config.h"
+#include "fuzz/fuzz_util.h"
+
+using namespace msmcal;
+
+extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
+  const std::string text = fuzz::Text(data, size);
+  gen::RigGeneratorConfig config;
+  if (fuzz::Returns([&] { config = gen::ParseRigGeneratorConfig(text, "rig.yaml"); }, "rig.yaml")) {
+    fuzz::MustReturn([&] { (void)config.Validate(); }, "RigGeneratorConfig::Validate");
+  }
+  fuzz::Returns([&] { (void)hall_mcu::ParseHallMcuConfig(text, "rig.yaml"); }, "rig.yaml");
+  return 0;
+}
