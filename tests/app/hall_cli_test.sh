@@ -62,7 +62,8 @@ grep -q "bad.yaml" "$dir/err2" && grep -q "delta_t_s" "$dir/err2"
 # call on a scalar" / "bad conversion" escaped without them).
 printf 'abc\n' > "$dir/scalar.yaml"
 printf 'format: [1, 2]\n' > "$dir/format.yaml"
-sed 's/^parameters:.*/parameters: 1/' "$dir/s/results/hall_model.yaml" > "$dir/section.yaml"
+awk '/^parameters:/ { print "parameters: 1"; skip = 1; next } skip && /^[ -]/ { next }
+     { skip = 0; print }' "$dir/s/results/hall_model.yaml" > "$dir/section.yaml"
 sed '/^  bins_uT:/,$d' "$dir/s/results/hall_model.yaml" > "$dir/bins.yaml"
 echo "  bins_uT: {a: 1}" >> "$dir/bins.yaml"
 for f in scalar:root format:format section:parameters bins:bins_uT; do
