@@ -47,8 +47,13 @@ void RunExplain(const SolveArgs& args, const solver::PipelineOptions& options) {
   std::vector<std::string> names;
   std::string what;
   int expected = 0;
+  // The frame's static scene (the images its background is measured in): step 1 the same
+  // sliding pose, step 2 every frame.
+  std::vector<std::string> scene;
   for (const auto& f : rec.step1)
     if (f.file == args.explain) {
+      for (const auto& g : rec.step1)
+        if (g.pose == f.pose && g.file != f.file) scene.push_back(g.file);
       expected = static_cast<int>(f.beams.size());
       asks = {world, sliding};
       names = {"world", "sliding"};
@@ -58,6 +63,8 @@ void RunExplain(const SolveArgs& args, const solver::PipelineOptions& options) {
     }
   for (const auto& f : rec.step2)
     if (f.file == args.explain) {
+      for (const auto& g : rec.step2)
+        if (g.file != f.file) scene.push_back(g.file);
       asks = {world};
       names = {"world"};
       const size_t triggers = f.kind == dataset::Step2Kind::kNeutral ? 1 : f.triggers.size();
@@ -155,6 +162,36 @@ void RunExplain(const SolveArgs& args, const solver::PipelineOptions& options) {
                     c.centroid_px.y(), c.num_pixels, c.peak, c.elongation, c.reason.c_str());
     std::printf("  (blobs fainter than %.2f of the brightest on the plane are then refused: %d)\n",
                 options.adaptive_min_relative_peak, m.dot_rejections.too_faint);
+  }
+  const bool off = asks.size() == 2 ? static_cast<int>(m.dots_on_plane) != expected
+                                    : static_cast<int>(m.dots_on_plane) < expected;
+  if (host && off && options.background_dots && !scene.empty()) {
+    vision::StaticBackground background;
+    background.Add(img);
+    for (const auto& file : scene) {
+      const cv::Mat other = cv::imread((dir / file).string(), cv::IMREAD_UNCHANGED);
+      if (other.empty() || !background.Add(other))
+        std::printf("  (%s cannot be read or differs in size: left out of the background)\n",
+                    file.c_str());
+    }
+    const cv::Mat bg = background.Without(img);
+    cv::Mat diff;
+    cv::subtract(img, bg, diff);
+    const vision::DotOptions opts = vision::AdaptiveDotOptions(diff, host->square_px, options.dots);
+    std::vector<vision::DotCandidate> c3;
+    vision::DotRejections r3;
+    vision::DetectDotsOverBackground(img, bg, opts, &r3, &c3);
+    std::printf(
+        "a third pass on the frame's difference from its static scene (%zu other images; "
+        "threshold %.3g of full scale; step 1 only if each beam is blocked in another image of "
+        "the pose) keeps:\n",
+        background.count() - 1, opts.threshold_fraction);
+    int n = 0;
+    for (const auto& c : c3)
+      if (c.kept && n++ < 60)
+        std::printf("  (%7.1f, %7.1f) %4d px peak %6.0f elong %.2f sat %3d: %s\n",
+                    c.centroid_px.x(), c.centroid_px.y(), c.num_pixels, c.peak, c.elongation,
+                    c.saturated_pixels, c.reason.c_str());
   }
   std::printf(
       "on the board's plane (margins, roundness in the plane, square corners): %zu of %zu "

@@ -509,6 +509,33 @@ std::vector<Dot> DetectDotsImpl(const cv::Mat& image, const cv::Mat& background,
 
 }  // namespace
 
+bool StaticBackground::Add(const cv::Mat& image) {
+  if (lo_.empty()) {
+    lo_ = image.clone();
+    lo2_ = cv::Mat(image.size(), image.type(),
+                   cv::Scalar::all(image.depth() == CV_16U ? 65535.0 : 255.0));
+    count_ = 1;
+    return true;
+  }
+  if (image.size() != lo_.size() || image.type() != lo_.type()) return false;
+  cv::Mat hi;
+  cv::max(lo_, image, hi);
+  cv::min(lo2_, hi, lo2_);
+  cv::min(lo_, image, lo_);
+  ++count_;
+  return true;
+}
+
+cv::Mat StaticBackground::Without(const cv::Mat& image) const {
+  if (count_ < 2 || image.size() != lo_.size() || image.type() != lo_.type())
+    throw std::invalid_argument(
+        "StaticBackground::Without: needs 2 images of the image's size and type");
+  cv::Mat background = lo_.clone(), holds_min;
+  cv::compare(image, lo_, holds_min, cv::CMP_LE);
+  lo2_.copyTo(background, holds_min);
+  return background;
+}
+
 std::vector<Dot> DetectDots(const cv::Mat& image, const DotOptions& options,
                             DotRejections* rejections, std::vector<DotCandidate>* candidates_out) {
   return DetectDotsImpl(image, cv::Mat(), options, rejections, candidates_out);

@@ -109,6 +109,22 @@ std::vector<Dot> DetectDots(const cv::Mat& image, const DotOptions& options = {}
                             DotRejections* rejections = nullptr,
                             std::vector<DotCandidate>* candidates = nullptr);
 
+// The background of a static scene (camera and boards fixed, the laser spots changing from
+// image to image): per pixel and channel the smallest and second smallest value over the images
+// added. Without(image) is the scene without that image's own light: the smallest over the
+// others (`image` must be one of those added; where it holds the smallest, the second).
+class StaticBackground {
+ public:
+  // False (and nothing added) if `image` differs in size or type from the first one.
+  bool Add(const cv::Mat& image);
+  cv::Mat Without(const cv::Mat& image) const;
+  size_t count() const { return count_; }
+
+ private:
+  cv::Mat lo_, lo2_;
+  size_t count_ = 0;
+};
+
 // The same over a known background (same size and type; e.g. the scene without the spots):
 // the signal is image - background instead of the top-hat, so board squares, their edges and
 // corners cancel; saturation and flat tops are read from `image`, greenness (BGR) from the

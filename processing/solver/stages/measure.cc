@@ -131,18 +131,24 @@ void DotsOverStaticBackground(const std::vector<std::vector<size_t>>& groups,
     const auto& m = (*measured)[i];
     return sizes[i].size() == 2 ? m.boards[1] : m.boards[0];
   };
-  // Step 1 shows one dot per listed beam: a surplus there is residue taken for a spot (step 2
-  // surpluses are left to the grouping). A step 1 frame is measured this way only if each of
-  // its beams is blocked in another image of its pose (else the difference removes its spot).
+  // How far a count is from what the frame shows. Step 1 shows one dot per listed beam: a
+  // surplus there is residue taken for a spot, and the frame is measured again; a step 2
+  // surplus is left to the grouping (only a shortfall is), but the pass must not add blobs
+  // beyond the expected count either. A step 1 frame is measured this way only if each of its
+  // beams is blocked in another image of its pose (else the difference removes its spot).
   auto off_count = [&](size_t i, size_t n) {
     const size_t want = static_cast<size_t>(expected[i]);
-    return sizes[i].size() == 2 ? (n > want ? n - want : want - n) : (n < want ? want - n : 0);
+    return n > want ? n - want : want - n;
+  };
+  auto needs_pass = [&](size_t i, size_t n) {
+    return sizes[i].size() == 2 ? n != static_cast<size_t>(expected[i])
+                                : n < static_cast<size_t>(expected[i]);
   };
   for (const auto& group : groups) {
     if (group.size() < 2) continue;
     std::vector<size_t> short_frames;
     for (size_t i : group) {
-      if (!host_of(i) || expected[i] <= 0 || off_count(i, (*measured)[i].dots_on_plane) == 0)
+      if (!host_of(i) || expected[i] <= 0 || !needs_pass(i, (*measured)[i].dots_on_plane))
         continue;
       bool dot_free_views = true;
       if (i < step1_beams.size())
@@ -155,34 +161,20 @@ void DotsOverStaticBackground(const std::vector<std::vector<size_t>>& groups,
       if (dot_free_views) short_frames.push_back(i);
     }
     if (short_frames.empty()) continue;
-    cv::Mat lo, lo2;  // per pixel and channel: the smallest and second smallest over the group
+    vision::StaticBackground scene;
     bool same = true;
     for (size_t i : group) {
       const cv::Mat img = load(files[i]);
       if (img.empty()) throw SolveError(files[i] + ": cannot read the image");
-      if (lo.empty()) {
-        lo = img.clone();
-        lo2 = cv::Mat(img.size(), img.type(),
-                      cv::Scalar::all(img.depth() == CV_16U ? 65535.0 : 255.0));
-        continue;
-      }
-      if (img.size() != lo.size() || img.type() != lo.type()) {
-        same = false;
-        break;
-      }
-      cv::Mat hi;
-      cv::max(lo, img, hi);
-      cv::min(lo2, hi, lo2);
-      cv::min(lo, img, lo);
+      same = same && scene.Add(img);
     }
     if (!same) continue;
     ForEachImage(short_frames.size(), o.image_threads, [&](size_t k) {
       const size_t i = short_frames[k];
       const cv::Mat img = load(files[i]);
       if (img.empty()) throw SolveError(files[i] + ": cannot read the image");
-      cv::Mat background = lo.clone(), holds_min, diff;
-      cv::compare(img, lo, holds_min, cv::CMP_LE);
-      lo2.copyTo(background, holds_min);
+      const cv::Mat background = scene.Without(img);
+      cv::Mat diff;
       cv::subtract(img, background, diff);
       ImageMeasurement& m = (*measured)[i];
       // Threshold from the difference's own noise (its floor is flat: no top-hat needed).

@@ -20,6 +20,7 @@
 #include "processing/solver/home_frame.h"
 #include "processing/solver/mle.h"
 #include "processing/solver/pipeline.h"
+#include "tests/testing/cached_loader.h"
 
 namespace msmcal::solver {
 namespace {
@@ -51,13 +52,13 @@ TEST(HonestySimTest, NormalisedErrorsHaveUnitRms) {
     for (double& t : o.geometry.mount_tilt_deg) t += tilt(rng);
     const sim::RigSimulator simulator(o);
     const dataset::Recording rec = simulator.MakeRecording(/*with_hall=*/false);
-    const ImageLoader load = [&](const std::string& file) -> cv::Mat {
+    const ImageLoader load = msmcal::testing::CachedLoader([&](const std::string& file) -> cv::Mat {
       for (size_t i = 0; i < rec.step1.size(); ++i)
         if (rec.step1[i].file == file) return simulator.RenderStep1Frame(i);
       for (size_t i = 0; i < rec.step2.size(); ++i)
         if (rec.step2[i].file == file) return simulator.RenderStep2Frame(i);
       return cv::Mat();
-    };
+    });
     SolveOutput out;
     try {
       out = SolveRecording(rec, load);

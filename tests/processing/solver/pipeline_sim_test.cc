@@ -9,6 +9,7 @@
 #include "processing/geometry/mirror_frame.h"
 #include "processing/solver/home_frame.h"
 #include "processing/solver/pipeline.h"
+#include "tests/testing/cached_loader.h"
 
 namespace msmcal::solver {
 namespace {
@@ -47,7 +48,7 @@ SimRun RunSimulation(const sim::SimOptions& options, const PipelineOptions& pipe
     for (int id : all)
       r.rec.step1.push_back({file(r.rec.step1.size()), options.step1.poses - 1, {id}});
   }
-  const ImageLoader load = [&](const std::string& file) -> cv::Mat {
+  const ImageLoader load = msmcal::testing::CachedLoader([&](const std::string& file) -> cv::Mat {
     for (size_t i = 0; i < r.rec.step1.size(); ++i)
       if (r.rec.step1[i].file == file)
         return r.sim->RenderScene(r.sim->FrameScene(r.rec.step1[i]), i);
@@ -59,7 +60,7 @@ SimRun RunSimulation(const sim::SimOptions& options, const PipelineOptions& pipe
         return r.sim->RenderScene(scene, 100000 + i);
       }
     return cv::Mat();
-  };
+  });
   r.out = SolveRecording(r.rec, load, pipeline);
   return r;
 }

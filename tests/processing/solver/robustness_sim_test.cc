@@ -19,6 +19,7 @@
 #include "mocks/rig/rig_simulator.h"
 #include "processing/solver/diagnostics.h"
 #include "processing/solver/pipeline.h"
+#include "tests/testing/cached_loader.h"
 
 namespace msmcal::solver {
 namespace {
@@ -86,7 +87,7 @@ SolveRun Solve(const sim::SimOptions& o, const ImageEdit& edit = {},
   SolveRun r;
   r.sim = std::make_unique<sim::RigSimulator>(o);
   r.rec = r.sim->MakeRecording(/*with_hall=*/false);
-  const ImageLoader load = [&](const std::string& file) -> cv::Mat {
+  const ImageLoader load = msmcal::testing::CachedLoader([&](const std::string& file) -> cv::Mat {
     cv::Mat img;
     for (size_t i = 0; i < r.rec.step1.size(); ++i)
       if (r.rec.step1[i].file == file) img = r.sim->RenderStep1Frame(i);
@@ -95,7 +96,7 @@ SolveRun Solve(const sim::SimOptions& o, const ImageEdit& edit = {},
     if (!img.empty() && edit) img = edit(file, img);
     MaybeDump(o, file, img);
     return img;
-  };
+  });
   try {
     r.out = SolveRecording(r.rec, load, p);
   } catch (const SolveError& e) {
@@ -377,7 +378,7 @@ TEST_P(RandomisedScenes, SolvesHonestlyOrSaysWhy) {
   SolveRun r;
   r.sim = std::make_unique<sim::RigSimulator>(d.sim);
   r.rec = r.sim->MakeRecording(/*with_hall=*/false);
-  const ImageLoader load = [&](const std::string& file) -> cv::Mat {
+  const ImageLoader load = msmcal::testing::CachedLoader([&](const std::string& file) -> cv::Mat {
     cv::Mat img;
     for (size_t i = 0; i < r.rec.step1.size(); ++i)
       if (r.rec.step1[i].file == file) img = ApplyDraw(d, r.sim->RenderStep1Frame(i));
@@ -385,7 +386,7 @@ TEST_P(RandomisedScenes, SolvesHonestlyOrSaysWhy) {
       if (r.rec.step2[i].file == file) img = ApplyDraw(d, r.sim->RenderStep2Frame(i));
     MaybeDump(d.sim, file, img);
     return img;
-  };
+  });
   try {
     r.out = SolveRecording(r.rec, load);
   } catch (const SolveError& e) {
