@@ -174,13 +174,10 @@ void RunExplain(const SolveArgs& args, const solver::PipelineOptions& options) {
         std::printf("  (%s cannot be read or differs in size: left out of the background)\n",
                     file.c_str());
     }
-    const cv::Mat bg = background.Without(img);
-    cv::Mat diff;
-    cv::subtract(img, bg, diff);
-    const vision::DotOptions opts = vision::AdaptiveDotOptions(diff, host->square_px, options.dots);
     std::vector<vision::DotCandidate> c3;
-    vision::DotRejections r3;
-    vision::DetectDotsOverBackground(img, bg, opts, &r3, &c3);
+    vision::DotOptions opts;
+    vision::DetectDotsOverBackgroundAdaptive(img, background.Without(img), host->square_px,
+                                             options.dots, &opts, nullptr, &c3);
     std::printf(
         "a third pass on the frame's difference from its static scene (%zu other images; "
         "threshold %.3g of full scale; step 1 only if each beam is blocked in another image of "

@@ -417,7 +417,8 @@ namespace {
 // DetectDots and DetectDotsOverBackground: `background` empty for the top-hat, else the signal
 // is image - background (and the greenness is read from that difference).
 std::vector<Dot> DetectDotsImpl(const cv::Mat& image, const cv::Mat& background,
-                                const DotOptions& options, DotRejections* rejections,
+                                const cv::Mat& given_difference, const DotOptions& options,
+                                DotRejections* rejections,
                                 std::vector<DotCandidate>* candidates_out) {
   if (const std::string err = options.Validate(); !err.empty())
     throw std::invalid_argument("DotOptions: " + err);
@@ -449,7 +450,10 @@ std::vector<Dot> DetectDotsImpl(const cv::Mat& image, const cv::Mat& background,
   // saturation.
   cv::Mat signal = mono;
   if (!background.empty()) {
-    cv::subtract(image, background, difference);  // saturating: 0 where the image is darker
+    if (given_difference.empty())
+      cv::subtract(image, background, difference);  // saturating: 0 where the image is darker
+    else
+      difference = given_difference;
     if (bgr) {
       cv::extractChannel(difference, difference_green, 1);
       signal = difference_green;
@@ -538,14 +542,28 @@ cv::Mat StaticBackground::Without(const cv::Mat& image) const {
 
 std::vector<Dot> DetectDots(const cv::Mat& image, const DotOptions& options,
                             DotRejections* rejections, std::vector<DotCandidate>* candidates_out) {
-  return DetectDotsImpl(image, cv::Mat(), options, rejections, candidates_out);
+  return DetectDotsImpl(image, cv::Mat(), cv::Mat(), options, rejections, candidates_out);
 }
 
 std::vector<Dot> DetectDotsOverBackground(const cv::Mat& image, const cv::Mat& background,
                                           const DotOptions& options, DotRejections* rejections,
                                           std::vector<DotCandidate>* candidates) {
   if (background.empty()) throw std::invalid_argument("DetectDotsOverBackground: empty background");
-  return DetectDotsImpl(image, background, options, rejections, candidates);
+  return DetectDotsImpl(image, background, cv::Mat(), options, rejections, candidates);
+}
+
+std::vector<Dot> DetectDotsOverBackgroundAdaptive(const cv::Mat& image, const cv::Mat& background,
+                                                  double square_px, const DotOptions& base,
+                                                  DotOptions* used, DotRejections* rejections,
+                                                  std::vector<DotCandidate>* candidates) {
+  if (background.empty() || background.size() != image.size() || background.type() != image.type())
+    throw std::invalid_argument(
+        "DetectDotsOverBackground: the background differs from the image in size or type");
+  cv::Mat difference;
+  cv::subtract(image, background, difference);
+  const DotOptions options = AdaptiveDotOptions(difference, square_px, base);
+  if (used) *used = options;
+  return DetectDotsImpl(image, background, difference, options, rejections, candidates);
 }
 
 namespace {

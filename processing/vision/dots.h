@@ -133,6 +133,13 @@ std::vector<Dot> DetectDotsOverBackground(const cv::Mat& image, const cv::Mat& b
                                           const DotOptions& options,
                                           DotRejections* rejections = nullptr,
                                           std::vector<DotCandidate>* candidates = nullptr);
+// The same with settings from the difference's own noise and the board's squares
+// (AdaptiveDotOptions of image - background, computed once); `used` gets them.
+std::vector<Dot> DetectDotsOverBackgroundAdaptive(const cv::Mat& image, const cv::Mat& background,
+                                                  double square_px, const DotOptions& base,
+                                                  DotOptions* used = nullptr,
+                                                  DotRejections* rejections = nullptr,
+                                                  std::vector<DotCandidate>* candidates = nullptr);
 
 // Settings for one image from its own data, for spots the defaults miss (small or faint spots,
 // boards of small squares): the top-hat kernel from the board's square size (the largest odd

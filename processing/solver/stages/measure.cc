@@ -148,8 +148,7 @@ void DotsOverStaticBackground(const std::vector<std::vector<size_t>>& groups,
     if (group.size() < 2) continue;
     std::vector<size_t> short_frames;
     for (size_t i : group) {
-      if (!host_of(i) || expected[i] <= 0 || !needs_pass(i, (*measured)[i].dots_on_plane))
-        continue;
+      if (!host_of(i) || expected[i] <= 0 || !needs_pass(i, (*measured)[i].dots_on_plane)) continue;
       bool dot_free_views = true;
       if (i < step1_beams.size())
         for (int b : step1_beams[i])
@@ -161,27 +160,26 @@ void DotsOverStaticBackground(const std::vector<std::vector<size_t>>& groups,
       if (dot_free_views) short_frames.push_back(i);
     }
     if (short_frames.empty()) continue;
+    // One read per image: the short frames' own images are kept for their pass.
     vision::StaticBackground scene;
+    std::map<size_t, cv::Mat> own;
     bool same = true;
     for (size_t i : group) {
       const cv::Mat img = load(files[i]);
       if (img.empty()) throw SolveError(files[i] + ": cannot read the image");
       same = same && scene.Add(img);
+      if (std::find(short_frames.begin(), short_frames.end(), i) != short_frames.end())
+        own[i] = img;
     }
     if (!same) continue;
     ForEachImage(short_frames.size(), o.image_threads, [&](size_t k) {
       const size_t i = short_frames[k];
-      const cv::Mat img = load(files[i]);
-      if (img.empty()) throw SolveError(files[i] + ": cannot read the image");
-      const cv::Mat background = scene.Without(img);
-      cv::Mat diff;
-      cv::subtract(img, background, diff);
+      const cv::Mat& img = own.at(i);
       ImageMeasurement& m = (*measured)[i];
-      // Threshold from the difference's own noise (its floor is flat: no top-hat needed).
-      const vision::DotOptions opts =
-          vision::AdaptiveDotOptions(diff, host_of(i)->square_px, o.dots);
+      vision::DotOptions opts;
       vision::DotRejections rej;
-      std::vector<vision::Dot> dots = vision::DetectDotsOverBackground(img, background, opts, &rej);
+      std::vector<vision::Dot> dots = vision::DetectDotsOverBackgroundAdaptive(
+          img, scene.Without(img), host_of(i)->square_px, o.dots, &opts, &rej);
       RegionRejections region;
       const size_t found = DotsOnHostPlane(dots, m, sizes[i], o, &region).size();
       if (off_count(i, found) >= off_count(i, m.dots_on_plane) ||

@@ -272,70 +272,61 @@ TEST(Step2Stage, DropsAFrameWhoseDotsFitNoPlane) {
 
 // ---------------- triggers ----------------
 
-TEST(TriggersStage, RecoversAKnownTriggerAssignment) {
-  // Drive-phase model: alpha = 3 sin(wf t) + 0.5 cos(wf t), beta = 2 sin(ws t) (deg).
-  const double fast_hz = 7.3, slow_hz = 0.61;
-  auto model = [&](double t) {
+// Multi-trigger frames (3 triggers each, groups shuffled within a frame) sampled from the
+// drive-phase model alpha = 3 sin(wf t) + 0.5 cos(wf t), beta = 2 sin(ws t) (deg).
+struct TriggerCase {
+  double fast_hz = 7.3, slow_hz = 0.61;
+  std::vector<TriggerFrame> frames;
+  std::vector<TriggerGroup> groups;
+  std::vector<int> truth;  // slot per group
+  Eigen::Vector2d Model(double t) const {
     return Eigen::Vector2d(
         3 * std::sin(2 * M_PI * fast_hz * t) + 0.5 * std::cos(2 * M_PI * fast_hz * t),
         2 * std::sin(2 * M_PI * slow_hz * t));
-  };
-  std::vector<TriggerFrame> frames;
-  std::vector<TriggerGroup> groups;
-  std::vector<int> truth;
-  std::mt19937 rng(3);
-  for (int f = 0; f < 8; ++f) {
+  }
+};
+TriggerCase MakeTriggerCase(int num_frames, double spacing_s, double drift_s, unsigned seed) {
+  TriggerCase c;
+  std::mt19937 rng(seed);
+  for (int f = 0; f < num_frames; ++f) {
     TriggerFrame fr;
-    for (int s = 0; s < 3; ++s) fr.t_s.push_back(0.013 * (3 * f + s) + 0.0021 * f * f);
+    for (int s = 0; s < 3; ++s) fr.t_s.push_back(spacing_s * (3 * f + s) + drift_s * f * f);
     std::vector<int> order = {0, 1, 2};
     std::shuffle(order.begin(), order.end(), rng);
     for (int s : order) {
-      groups.push_back({f, model(fr.t_s[s])});
-      truth.push_back(s);
+      c.groups.push_back({f, c.Model(fr.t_s[s])});
+      c.truth.push_back(s);
     }
-    frames.push_back(fr);
+    c.frames.push_back(fr);
   }
+  return c;
+}
+
+TEST(TriggersStage, RecoversAKnownTriggerAssignment) {
+  const TriggerCase c = MakeTriggerCase(8, 0.013, 0.0021, 3);
   std::string note;
   TriggerModel fitted;
-  const std::vector<int> slots = AssignTriggers(frames, groups, {Eigen::Vector2d::Zero()}, fast_hz,
-                                                slow_hz, {}, &note, &fitted);
-  EXPECT_EQ(slots, truth);
+  const std::vector<int> slots = AssignTriggers(c.frames, c.groups, {Eigen::Vector2d::Zero()},
+                                                c.fast_hz, c.slow_hz, {}, &note, &fitted);
+  EXPECT_EQ(slots, c.truth);
   EXPECT_NE(note.find("24 groups in 8 multi-trigger frames"), std::string::npos) << note;
-  EXPECT_LT((fitted.Predict(0.2, true) - model(0.2)).norm(), 1e-6);
+  EXPECT_LT((fitted.Predict(0.2, true) - c.Model(0.2)).norm(), 1e-6);
 }
 
 // Two triggers' dots close together can pair wrongly into a plane tens of degrees off: that
 // plane gets no slot (-1) and does not pull the model, so every other plane keeps its trigger
 // (before the model was refined on the inliers only, one such plane moved them all).
 TEST(TriggersStage, APlaneFromAWrongPairingGetsNoSlotAndMovesNoOther) {
-  const double fast_hz = 7.3, slow_hz = 0.61;
-  auto model = [&](double t) {
-    return Eigen::Vector2d(
-        3 * std::sin(2 * M_PI * fast_hz * t) + 0.5 * std::cos(2 * M_PI * fast_hz * t),
-        2 * std::sin(2 * M_PI * slow_hz * t));
-  };
-  std::vector<TriggerFrame> frames;
-  std::vector<TriggerGroup> groups;
-  std::vector<int> truth;
-  std::mt19937 rng(5);
-  for (int f = 0; f < 10; ++f) {
-    TriggerFrame fr;
-    for (int s = 0; s < 3; ++s) fr.t_s.push_back(0.011 * (3 * f + s) + 0.0017 * f * f);
-    std::vector<int> order = {0, 1, 2};
-    std::shuffle(order.begin(), order.end(), rng);
-    for (int s : order) {
-      groups.push_back({f, model(fr.t_s[s])});
-      truth.push_back(s);
-    }
-    frames.push_back(fr);
-  }
+  TriggerCase c = MakeTriggerCase(10, 0.011, 0.0017, 5);
+  auto& groups = c.groups;
+  auto& truth = c.truth;
   groups[22].angles_deg = Eigen::Vector2d(0.27, -120.8);  // frame 7: a wrong pairing
   truth[22] = -1;
   groups[23].angles_deg = Eigen::Vector2d(4.7, 6.5);  // and another, a few degrees off
   truth[23] = -1;
   std::string note;
   const std::vector<int> slots =
-      AssignTriggers(frames, groups, {Eigen::Vector2d::Zero()}, fast_hz, slow_hz, {}, &note);
+      AssignTriggers(c.frames, groups, {Eigen::Vector2d::Zero()}, c.fast_hz, c.slow_hz, {}, &note);
   EXPECT_EQ(slots, truth);
   EXPECT_NE(note.find("over 28 groups (2 more than 0.4 deg off the model left out)"),
             std::string::npos)
