@@ -36,6 +36,7 @@
 #include "sessions/orchestrator/instruments.h"
 #include "sessions/orchestrator/quality_gate.h"
 #include "sessions/orchestrator/rig_operator.h"
+#include "sessions/orchestrator/session_events.h"
 
 namespace msmcal::store {
 class Clock;
@@ -92,6 +93,9 @@ struct OrchestratorOptions {
   std::function<void(const hall_mcu::HallBatch&)> hall_sink_hook;
   // Called after every gate decision (may be empty).
   FrameObserver on_frame;
+  // Called with every typed event of the session (may be empty): frames decided, Hall
+  // recordings, step states, the safe state (sessions/orchestrator/session_events.h).
+  SessionEventObserver on_event;
   // Journal metadata (session.db meta keys rig_id, mirror_id, note, run.kind, config_yaml).
   // run_kind tells `msmcal resume` which rig to rebuild: "lab" (config_yaml = the rig
   // configuration), "demo" (config_yaml = the simulator options), "replay" (config_yaml names the
