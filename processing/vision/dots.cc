@@ -552,6 +552,36 @@ std::vector<Dot> DetectDotsOverBackground(const cv::Mat& image, const cv::Mat& b
   return DetectDotsImpl(image, background, cv::Mat(), options, rejections, candidates);
 }
 
+namespace {
+
+// Robust sigma (1.4826 MAD) of image - background, signed, in the green channel of a BGR image,
+// over every pixel of a sample of rows: the noise of a difference of two exposures of a static
+// scene (the spots are too few pixels to move the median).
+double SignedDifferenceSigma(const cv::Mat& image, const cv::Mat& background) {
+  const int ch = image.channels();
+  const int c = ch == 3 ? 1 : 0;
+  const int row_step = std::max(1, image.rows / 300);
+  std::vector<float> d;
+  d.reserve(static_cast<size_t>(image.cols) * (image.rows / row_step + 1));
+  for (int y = 0; y < image.rows; y += row_step) {
+    for (int x = 0; x < image.cols; ++x) {
+      const int k = x * ch + c;
+      d.push_back(image.depth() == CV_8U
+                      ? float(image.ptr<uint8_t>(y)[k]) - float(background.ptr<uint8_t>(y)[k])
+                      : float(image.ptr<uint16_t>(y)[k]) - float(background.ptr<uint16_t>(y)[k]));
+    }
+  }
+  if (d.empty()) return 0;
+  auto mid = d.begin() + d.size() / 2;
+  std::nth_element(d.begin(), mid, d.end());
+  const float median = *mid;
+  for (float& v : d) v = std::abs(v - median);
+  std::nth_element(d.begin(), mid, d.end());
+  return 1.4826 * *mid;
+}
+
+}  // namespace
+
 std::vector<Dot> DetectDotsOverBackgroundAdaptive(const cv::Mat& image, const cv::Mat& background,
                                                   double square_px, const DotOptions& base,
                                                   DotOptions* used, DotRejections* rejections,
@@ -561,7 +591,15 @@ std::vector<Dot> DetectDotsOverBackgroundAdaptive(const cv::Mat& image, const cv
         "DetectDotsOverBackground: the background differs from the image in size or type");
   cv::Mat difference;
   cv::subtract(image, background, difference);
-  const DotOptions options = AdaptiveDotOptions(difference, square_px, base);
+  DotOptions options = AdaptiveDotOptions(difference, square_px, base);
+  // The clipped difference is zero wherever the image is below its background (half the static
+  // scene), so its pixel-to-pixel noise reads low: the threshold comes from the signed
+  // difference's robust spread instead (same rule: 8 sigmas, between 2 % of full scale and
+  // base's).
+  const double full = image.depth() == CV_16U ? 65535.0 : 255.0;
+  options.threshold_fraction =
+      std::clamp(8.0 * std::max(SignedDifferenceSigma(image, background), 0.5) / full,
+                 options.threshold_fraction, base.threshold_fraction);
   if (used) *used = options;
   return DetectDotsImpl(image, background, difference, options, rejections, candidates);
 }

@@ -1,6 +1,7 @@
 #include "processing/solver/stages/common.h"
 
 #include <algorithm>
+#include <limits>
 #include <numeric>
 
 namespace msmcal::solver {
@@ -45,6 +46,35 @@ std::vector<int> BestPermutation(int n, const std::function<double(int, int)>& c
       best = perm;
     }
   } while (std::next_permutation(perm.begin(), perm.end()));
+  return best;
+}
+
+std::vector<int> BestInjection(int items, int slots, const std::function<double(int, int)>& cost,
+                               double unassigned) {
+  std::vector<std::vector<double>> c(items, std::vector<double>(slots));
+  for (int i = 0; i < items; ++i)
+    for (int s = 0; s < slots; ++s) c[i][s] = cost(i, s);
+  std::vector<int> cur(items, -1), best(items, -1);
+  std::vector<bool> used(slots, false);
+  double best_cost = std::numeric_limits<double>::infinity();
+  std::function<void(int, double)> visit = [&](int i, double sum) {
+    if (sum >= best_cost) return;
+    if (i == items) {
+      best_cost = sum;
+      best = cur;
+      return;
+    }
+    for (int s = 0; s < slots; ++s) {
+      if (used[s] || !(c[i][s] < unassigned)) continue;
+      used[s] = true;
+      cur[i] = s;
+      visit(i + 1, sum + c[i][s]);
+      used[s] = false;
+    }
+    cur[i] = -1;
+    visit(i + 1, sum + unassigned);
+  };
+  visit(0, 0.0);
   return best;
 }
 

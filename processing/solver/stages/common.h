@@ -29,6 +29,14 @@ std::vector<Eigen::Vector3d> BoardPoints(const dataset::BoardSpec& b);
 // greedy above. Returns slot per item.
 std::vector<int> BestPermutation(int n, const std::function<double(int, int)>& cost);
 
+// Best partial assignment of `items` to distinct `slots` (either may be the larger):
+// minimises the sum over items of cost(item, slot), an item left without a slot costing
+// `unassigned` (so no item is given a slot that costs more). Exhaustive (depth first with
+// pruning); meant for a few items and slots (a frame's beams and its candidate dots). Returns
+// the slot per item, -1 for none.
+std::vector<int> BestInjection(int items, int slots, const std::function<double(int, int)>& cost,
+                               double unassigned);
+
 // RMS distance between a board's detected corners and their projection through the PnP pose;
 // -1 if none projects.
 double ReprojectionRms(const geometry::CameraModel& camera, const geometry::Rigid3d& cam_from_board,

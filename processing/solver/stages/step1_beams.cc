@@ -3,9 +3,11 @@
 #include <Eigen/Dense>
 #include <Eigen/Eigenvalues>
 #include <algorithm>
+#include <limits>
 #include <map>
 #include <set>
 #include <sstream>
+#include <tuple>
 
 #include "processing/solver/initialise.h"
 
@@ -57,23 +59,31 @@ Step1Frames MeasureStep1Frames(const dataset::Recording& rec,
       dots.clear();
     }
     if (dots.size() > f.beams.size()) {
-      // Surplus blobs (checkerboard-junction residue): keep the roundest, say so.
+      // Surplus blobs (checkerboard-junction residue, glints): keep the roundest few as
+      // candidates; the beams' lines decide which are the laser dots (LabelBeams).
       auto elongation = [](const vision::Dot& d) {
         const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> es(d.cov_px2);
         return es.eigenvalues()(1) / std::max(es.eigenvalues()(0), 1e-12);
       };
       std::stable_sort(dots.begin(), dots.end(),
                        [&](const auto& a, const auto& b) { return elongation(a) < elongation(b); });
-      out.log.notes.push_back(f.file + ": kept the " + std::to_string(f.beams.size()) +
-                              " roundest of " + std::to_string(dots.size()) + " blobs");
-      dots.resize(f.beams.size());
+      const size_t keep = std::min(dots.size(), f.beams.size() + kSurplusStep1Candidates);
+      out.log.notes.push_back(f.file + ": " + std::to_string(dots.size()) + " blobs for " +
+                              std::to_string(f.beams.size()) + " beam(s); the " +
+                              std::to_string(keep) +
+                              " roundest are candidates, the beams' lines pick the dots");
+      dots.resize(keep);
     }
-    if (dots.size() != f.beams.size()) {
-      out.log.dropped.push_back(
-          {f.file, "found " + std::to_string(dots.size()) + " laser dots, expected " +
-                       std::to_string(f.beams.size()) + " (one per listed beam)"});
+    if (dots.empty() && !f.beams.empty()) {
+      out.log.dropped.push_back({f.file, "found 0 laser dots, expected " +
+                                             std::to_string(f.beams.size()) +
+                                             " (one per listed beam)"});
       continue;
     }
+    if (dots.size() < f.beams.size())
+      out.log.notes.push_back(f.file + ": found " + std::to_string(dots.size()) +
+                              " laser dots for " + std::to_string(f.beams.size()) +
+                              " beams; the beams' lines label those found");
     const auto c1s = SolvePlanarPnP(rec.camera, sliding_pts, boards[1]->corners_px);
     if (!c1s) {
       out.log.dropped.push_back({f.file, "PnP of the sliding board failed"});
@@ -155,68 +165,276 @@ BeamLabels LabelBeams(const std::vector<Step1View>& views,
     s.label.assign(v.dots.size(), -1);
     s1.push_back(std::move(s));
   }
-  // Identification frames: one beam, one dot.
+  // A beam's line through its labelled dots (>= 2 poses), and a dot's distance from it.
+  auto line_distance = [](const Line& l, const Eigen::Vector3d& p) {
+    return (p.cross(l.v) - l.m).norm() / l.v.norm();
+  };
+  // Consensus labelling (>= 3 sliding poses): the beams are the lines that the dots of many
+  // poses share. Lines are found among all candidate dots at once (sequential RANSAC: the line
+  // through two dots of different poses that the most poses' dots lie on, within
+  // kMaxBeamLineResidualMm, one dot per frame), and only then named, by the frames whose
+  // listed beams they agree with (an identification frame counts most). A blob taken for a dot,
+  // in any frame, identification frames included, cannot then bend a beam or swap two.
+  bool consensus_ok = false;
+  {
+    struct Cand {
+      int frame, dot, pose;
+      Eigen::Vector3d x;
+    };
+    std::vector<Cand> cands;
+    std::set<int> all_poses;
+    for (size_t k = 0; k < s1.size(); ++k) {
+      if (s1[k].beams.empty()) continue;
+      for (size_t i = 0; i < s1[k].dots.size(); ++i) {
+        cands.push_back(
+            {static_cast<int>(k), static_cast<int>(i), s1[k].pose, s1[k].dots_in_world[i]});
+        all_poses.insert(s1[k].pose);
+      }
+    }
+    std::vector<bool> taken(cands.size(), false);
+    struct Found {
+      Line line;
+      std::vector<int> members;  // into cands
+    };
+    std::vector<Found> lines;
+    // The members of a line: per frame the nearest untaken candidate within the tolerance.
+    auto members_of = [&](const Line& l, std::set<int>* poses, double* cost) {
+      std::map<int, std::pair<double, int>> best;  // frame -> (distance, cand)
+      for (size_t c = 0; c < cands.size(); ++c) {
+        if (taken[c]) continue;
+        const double d = line_distance(l, cands[c].x);
+        if (d > kMaxBeamLineResidualMm) continue;
+        auto it = best.find(cands[c].frame);
+        if (it == best.end() || d < it->second.first)
+          best[cands[c].frame] = {d, static_cast<int>(c)};
+      }
+      std::vector<int> m;
+      *cost = 0;
+      poses->clear();
+      for (const auto& [frame, dc] : best) {
+        m.push_back(dc.second);
+        poses->insert(cands[dc.second].pose);
+        *cost += dc.first * dc.first;
+      }
+      return m;
+    };
+    if (all_poses.size() >= 3) {
+      for (int round = 0; round < num_beams; ++round) {
+        size_t best_poses = 0, best_members = 0;
+        double best_cost = 1e300;
+        std::optional<Line> best_line;
+        for (size_t p = 0; p < cands.size(); ++p) {
+          if (taken[p]) continue;
+          for (size_t q = p + 1; q < cands.size(); ++q) {
+            if (taken[q] || cands[p].pose == cands[q].pose ||
+                (cands[q].x - cands[p].x).norm() < 1e-6)
+              continue;
+            const Line l = geometry::FitLine({cands[p].x, cands[q].x});
+            std::set<int> poses;
+            double cost = 0;
+            const std::vector<int> m = members_of(l, &poses, &cost);
+            if (std::make_tuple(poses.size(), m.size(), -cost) >
+                std::make_tuple(best_poses, best_members, -best_cost)) {
+              best_poses = poses.size();
+              best_members = m.size();
+              best_cost = cost;
+              best_line = l;
+            }
+          }
+        }
+        if (!best_line || best_poses < 3) break;
+        // Refit on the members, take them again with the refitted line.
+        std::set<int> poses;
+        double cost = 0;
+        std::vector<int> m = members_of(*best_line, &poses, &cost);
+        std::vector<Eigen::Vector3d> xs;
+        for (int c : m) xs.push_back(cands[c].x);
+        const Line refit = FitBeam(xs, sliding_z);
+        std::vector<int> m2 = members_of(refit, &poses, &cost);
+        if (poses.size() >= 3) m = std::move(m2);
+        for (int c : m) taken[c] = true;
+        lines.push_back({refit, std::move(m)});
+      }
+    }
+    if (static_cast<int>(lines.size()) == num_beams) {
+      // Name the lines: score(line, beam) = its members whose frame lists the beam, an
+      // identification frame (one listed beam) counting kIdWeight; the best injective naming.
+      constexpr double kIdWeight = 10;
+      std::vector<std::vector<double>> score(lines.size(), std::vector<double>(num_beams, 0));
+      double top = 0;
+      for (size_t L = 0; L < lines.size(); ++L)
+        for (int c : lines[L].members) {
+          const auto& beams = s1[cands[c].frame].beams;
+          for (int b : beams) {
+            score[L][b] += beams.size() == 1 ? kIdWeight : 1;
+            top = std::max(top, score[L][b]);
+          }
+        }
+      const std::vector<int> name = BestInjection(
+          static_cast<int>(lines.size()), num_beams,
+          [&](int L, int b) { return top - score[L][b]; }, top + 1);
+      bool named = true;
+      for (size_t L = 0; L < lines.size(); ++L)
+        named = named && name[L] >= 0 && score[L][name[L]] > 0;
+      if (named) {
+        consensus_ok = true;
+        for (size_t L = 0; L < lines.size(); ++L)
+          for (int c : lines[L].members) {
+            S1& s = s1[cands[c].frame];
+            if (std::find(s.beams.begin(), s.beams.end(), name[L]) != s.beams.end())
+              s.label[cands[c].dot] = name[L];
+          }
+        int labelled = 0, listed = 0;
+        for (const auto& s : s1) {
+          listed += static_cast<int>(s.beams.size());
+          for (int l : s.label) labelled += l >= 0 ? 1 : 0;
+        }
+        out.log.notes.push_back("step 1: dot-to-beam labels from " + std::to_string(num_beams) +
+                                " consensus lines over " + std::to_string(all_poses.size()) +
+                                " poses (" + std::to_string(labelled) + " of " +
+                                std::to_string(listed) + " listed beams' dots)");
+      }
+    }
+  }
   std::vector<std::vector<Eigen::Vector3d>> beam_points(num_beams);
   std::vector<std::vector<int>> beam_poses(num_beams);
-  std::vector<bool> done(s1.size(), false);
-  for (size_t k = 0; k < s1.size(); ++k) {
-    if (s1[k].beams.size() != 1) continue;
-    s1[k].label[0] = s1[k].beams[0];
-    beam_points[s1[k].beams[0]].push_back(s1[k].dots_in_world[0]);
-    beam_poses[s1[k].beams[0]].push_back(s1[k].pose);
-    done[k] = true;
-  }
-  // Other frames, nearest to already labelled poses first: predict each beam's dot on the
-  // frame's sliding plane (line through >= 2 poses, else the labelled point) and take the best
-  // permutation.
-  for (;;) {
-    int next = -1;
-    double next_dist = 1e300;
+  if (!consensus_ok) {
+    // Identification frames: one beam, one dot.
+    std::vector<bool> done(s1.size(), false);
     for (size_t k = 0; k < s1.size(); ++k) {
-      if (done[k]) continue;
-      double dist = 1e300;
-      for (int b : s1[k].beams)
-        for (size_t q = 0; q < beam_points[b].size(); ++q)
-          dist =
-              std::min(dist, (world_from_pose[s1[k].pose].translation - beam_points[b][q]).norm());
-      if (dist < next_dist) {
-        next_dist = dist;
-        next = static_cast<int>(k);
-      }
+      if (s1[k].beams.size() != 1 || s1[k].dots.size() != 1) continue;
+      s1[k].label[0] = s1[k].beams[0];
+      beam_points[s1[k].beams[0]].push_back(s1[k].dots_in_world[0]);
+      beam_poses[s1[k].beams[0]].push_back(s1[k].pose);
+      done[k] = true;
     }
-    if (next < 0) break;
-    S1& s = s1[next];
-    done[next] = true;
-    std::vector<Eigen::Vector3d> pred;
-    bool ok = true;
-    const Plane plane_w =
-        geometry::TransformPlane(world_from_pose[s.pose], Plane{Eigen::Vector3d::UnitZ(), 0});
-    for (int b : s.beams) {
-      if (beam_points[b].empty()) {
-        ok = false;
-        break;
+    // Other frames, nearest to already labelled poses first: predict each beam's dot on the
+    // frame's sliding plane (line through >= 2 poses, else the labelled point) and take the best
+    // assignment of beams to the frame's dots (a frame may hold surplus candidates or miss a dot).
+    for (;;) {
+      int next = -1;
+      double next_dist = 1e300;
+      for (size_t k = 0; k < s1.size(); ++k) {
+        if (done[k]) continue;
+        double dist = 1e300;
+        for (int b : s1[k].beams)
+          for (size_t q = 0; q < beam_points[b].size(); ++q)
+            dist = std::min(dist,
+                            (world_from_pose[s1[k].pose].translation - beam_points[b][q]).norm());
+        if (dist < next_dist) {
+          next_dist = dist;
+          next = static_cast<int>(k);
+        }
       }
-      std::set<int> distinct(beam_poses[b].begin(), beam_poses[b].end());
-      if (distinct.size() >= 2) {
-        const auto x = geometry::IntersectLinePlane(geometry::FitLine(beam_points[b]), plane_w);
-        pred.push_back(x ? *x : beam_points[b].back());
+      if (next < 0) break;
+      S1& s = s1[next];
+      done[next] = true;
+      std::vector<Eigen::Vector3d> pred;
+      bool ok = true;
+      const Plane plane_w =
+          geometry::TransformPlane(world_from_pose[s.pose], Plane{Eigen::Vector3d::UnitZ(), 0});
+      for (int b : s.beams) {
+        if (beam_points[b].empty()) {
+          ok = false;
+          break;
+        }
+        std::set<int> distinct(beam_poses[b].begin(), beam_poses[b].end());
+        if (distinct.size() >= 2) {
+          const auto x = geometry::IntersectLinePlane(geometry::FitLine(beam_points[b]), plane_w);
+          pred.push_back(x ? *x : beam_points[b].back());
+        } else {
+          pred.push_back(beam_points[b].back());
+        }
+      }
+      if (!ok) {
+        out.log.dropped.push_back({s.file,
+                                   "cannot tell its beams apart: a listed beam has no "
+                                   "identification frame"});
+        continue;
+      }
+      const int nb = static_cast<int>(s.beams.size());
+      const int nd = static_cast<int>(s.dots.size());
+      std::vector<int> slot;
+      if (nb == nd) {
+        slot = BestPermutation(
+            nb, [&](int i, int d) { return (pred[i] - s.dots_in_world[d]).squaredNorm(); });
       } else {
-        pred.push_back(beam_points[b].back());
+        // Unequal counts (surplus candidates or a missing dot): the best partial assignment;
+        // the consensus lines below correct a wrong pick.
+        slot = BestInjection(
+            nb, nd, [&](int i, int d) { return (pred[i] - s.dots_in_world[d]).squaredNorm(); },
+            std::numeric_limits<double>::infinity());
+      }
+      for (int i = 0; i < nb; ++i) {
+        if (slot[i] < 0) continue;
+        s.label[slot[i]] = s.beams[i];
+        beam_points[s.beams[i]].push_back(s.dots_in_world[slot[i]]);
+        beam_poses[s.beams[i]].push_back(s.pose);
       }
     }
-    if (!ok) {
-      out.log.dropped.push_back({s.file,
-                                 "cannot tell its beams apart: a listed beam has no "
-                                 "identification frame"});
-      continue;
-    }
-    const int n = static_cast<int>(s.dots.size());
-    const auto perm = BestPermutation(
-        n, [&](int i, int slot) { return (pred[i] - s.dots_in_world[slot]).squaredNorm(); });
-    for (int i = 0; i < n; ++i) {
-      s.label[perm[i]] = s.beams[i];
-      beam_points[s.beams[i]].push_back(s.dots_in_world[perm[i]]);
-      beam_poses[s.beams[i]].push_back(s.pose);
+    // Robust relabelling: each beam's line by consensus over its labelled dots (RANSAC over pairs
+    // of dots on different poses, inliers within kMaxBeamLineResidualMm), then every frame's
+    // dots assigned to its beams against those lines, a dot farther than the tolerance from
+    // every listed beam's line left unlabelled. One wrong dot (a blob taken for a laser dot) can
+    // no longer pull a line so far that the right dots look wrong.
+    {
+      std::vector<std::optional<Line>> robust(num_beams);
+      for (int b = 0; b < num_beams; ++b) {
+        std::vector<Eigen::Vector3d> pts;
+        std::vector<int> poses;
+        for (const auto& s : s1)
+          for (size_t i = 0; i < s.dots.size(); ++i)
+            if (s.label[i] == b) {
+              pts.push_back(s.dots_in_world[i]);
+              poses.push_back(s.pose);
+            }
+        if (std::set<int>(poses.begin(), poses.end()).size() < 3) continue;  // no consensus
+        size_t best_inliers = 0;
+        double best_cost = 1e300;
+        std::vector<Eigen::Vector3d> best_set;
+        for (size_t p = 0; p < pts.size(); ++p)
+          for (size_t q = p + 1; q < pts.size(); ++q) {
+            if (poses[p] == poses[q] || (pts[q] - pts[p]).norm() < 1e-6) continue;
+            const Line l = geometry::FitLine({pts[p], pts[q]});
+            std::vector<Eigen::Vector3d> in;
+            double cost = 0;
+            for (const auto& x : pts) {
+              const double d = line_distance(l, x);
+              if (d <= kMaxBeamLineResidualMm) {
+                in.push_back(x);
+                cost += d * d;
+              }
+            }
+            if (in.size() > best_inliers || (in.size() == best_inliers && cost < best_cost)) {
+              best_inliers = in.size();
+              best_cost = cost;
+              best_set = std::move(in);
+            }
+          }
+        if (best_set.size() >= 2) robust[b] = FitBeam(best_set, sliding_z);
+      }
+      for (auto& s : s1) {
+        const int nb = static_cast<int>(s.beams.size());
+        const int nd = static_cast<int>(s.dots.size());
+        bool all_robust = nb > 0;
+        for (int b : s.beams) all_robust = all_robust && robust[b].has_value();
+        if (!all_robust) continue;  // keep the propagated labels
+        const std::vector<int> slot = BestInjection(
+            nb, nd,
+            [&](int i, int d) { return line_distance(*robust[s.beams[i]], s.dots_in_world[d]); },
+            kMaxBeamLineResidualMm);
+        std::vector<int> label(s.dots.size(), -1);
+        for (int i = 0; i < nb; ++i)
+          if (slot[i] >= 0) label[slot[i]] = s.beams[i];
+        if (label != s.label) {
+          int labelled = 0;
+          for (int l : label) labelled += l >= 0 ? 1 : 0;
+          out.log.notes.push_back(
+              s.file + ": dot-to-beam labels set by the beams' consensus lines (" +
+              std::to_string(labelled) + " of " + std::to_string(nb) + " beams' dots)");
+          s.label = std::move(label);
+        }
+      }
     }
   }
   // Label check: fit each beam to all its labelled dots; while the farthest dot exceeds

@@ -25,13 +25,17 @@ namespace msmcal::solver {
 // permutation); the frame is dropped from the beam fit (docs/solver.md, "Step 1 label check").
 // Correctly labelled sliding-board dots sit ~0.05 mm from the line in simulation.
 constexpr double kMaxBeamLineResidualMm = 1.0;
+// A step 1 frame with more blobs on the plate than beams keeps this many surplus candidates
+// (the roundest) for the beams' lines to choose from.
+constexpr size_t kSurplusStep1Candidates = 4;
 
 // A step 1 frame whose sliding board and laser dots (one per listed beam) were found.
 struct Step1View {
   std::string file;
   int pose = 0;                   // sliding pose, numbered in order of first use
   std::vector<int> beams;         // beam indices (BeamTable) listed for the frame
-  std::vector<vision::Dot> dots;  // its laser dots, unlabelled
+  std::vector<vision::Dot> dots;  // candidate laser dots, unlabelled (may be more or fewer than
+                                  // beams: LabelBeams labels those that lie on a beam)
   geometry::Rigid3d c1_from_sliding;
   std::vector<Eigen::Vector3d> dots_in_world;  // per dot, through world_from_pose
 };
