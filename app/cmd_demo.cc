@@ -23,7 +23,7 @@
 #include "mocks/rig/sim_options.h"
 #include "sessions/interchange/interchange_io.h"
 #include "sessions/orchestrator/orchestrator.h"
-#include "sessions/orchestrator/report.h"
+#include "sessions/report/session_report.h"
 #include "sessions/store/session_store.h"
 #include "sessions/store/transfer.h"
 #include "simulation/truth/truth_comparison.h"
@@ -95,9 +95,8 @@ void RunDemo(const DemoArgs& args) {
     std::printf("session stored in %s\n", args.store.c_str());
     notes.push_back("session stored in " + args.store);
   }
-  const orchestrator::SessionReport report =
-      orchestrator::BuildSessionReport(out, notes, simulation::SimTruthSource());
-  interchange::WriteFileAtomically(out / "report.html", report.html);
+  const report::SessionReport report =
+      report::WriteSessionReport(out, {/*session_process=*/true, notes}, simulation::SimTruthSource());
   std::printf("\n%s", report.text.c_str());
   std::printf("\nreport: %s   (total %.1f s)\n", (out / "report.html").string().c_str(), elapsed());
   if (!finished.ok()) throw CLI::RuntimeError(1);
