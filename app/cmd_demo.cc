@@ -3,8 +3,9 @@
 // camera (rendering the rig simulator's scene for the current setup) and a mock Hall MCU (pty),
 // runs a complete calibration session through the real drivers and the orchestrator, then solves
 // (`msmcal solve`), calibrates the Hall sensor (`msmcal hall calibrate`, `msmcal hall predict`) in
-// this process (sessions/results/finish_steps.h), and prints the Table I/II-style report compared with
-// the simulator's truth; the HTML report goes to DIR/report.html.
+// this process (sessions/results/finish_steps.h), and prints the verdict and the Table I/II-style
+// report compared with the simulator's truth; the HTML report (sessions/report: verdict, tables,
+// interactive plots, provenance) goes to DIR/report.html.
 // `--guided`: the operator at the rig is prompted on this terminal for every set-up (the guided
 // mode, docs/guided.md): the answers go to a ConsoleOperator in front of the simulated world;
 // live gate figures are printed and annotated previews written to DIR/previews.
@@ -95,8 +96,8 @@ void RunDemo(const DemoArgs& args) {
     std::printf("session stored in %s\n", args.store.c_str());
     notes.push_back("session stored in " + args.store);
   }
-  const report::SessionReport report =
-      report::WriteSessionReport(out, {/*session_process=*/true, notes}, simulation::SimTruthSource());
+  const report::SessionReport report = report::WriteSessionReport(
+      out, {/*session_process=*/true, notes}, simulation::SimTruthSource());
   std::printf("\n%s", report.text.c_str());
   std::printf("\nreport: %s   (total %.1f s)\n", (out / "report.html").string().c_str(), elapsed());
   if (!finished.ok()) throw CLI::RuntimeError(1);

@@ -79,8 +79,8 @@ void RunResume(const ResumeArgs& args) {
                              "(re-run a replay with `msmcal replay`)");
   }
   const FinishResult finished = FinishSession(dir, FinishOptions{}, &notes);
-  const report::SessionReport report =
-      report::WriteSessionReport(dir, {/*session_process=*/true, notes}, simulation::SimTruthSource());
+  const report::SessionReport report = report::WriteSessionReport(
+      dir, {/*session_process=*/true, notes}, simulation::SimTruthSource());
   std::printf("\n%s", report.text.c_str());
   std::printf("\nreport: %s   (resume took %.1f s)\n", (dir / "report.html").string().c_str(),
               elapsed());

@@ -106,8 +106,8 @@ void RunSessionRun(const SessionRunArgs& args) {
   };
   (void)RunLabAcquisition(out, lab);
   const FinishResult finished = FinishSession(out, FinishOptions{}, &notes);
-  const report::SessionReport report =
-      report::WriteSessionReport(out, {/*session_process=*/true, notes}, simulation::SimTruthSource());
+  const report::SessionReport report = report::WriteSessionReport(
+      out, {/*session_process=*/true, notes}, simulation::SimTruthSource());
   std::printf("\n%s\nreport: %s\n", report.text.c_str(), (out / "report.html").string().c_str());
   if (!finished.ok()) throw CLI::RuntimeError(1);
 }

@@ -196,8 +196,8 @@ void RunSweepCommand(const SweepArgs& args) {
   hooks.augment = [](const fs::path& folder, sweep::PointFigures* f) {
     if (!fs::exists(folder / "truth") || !fs::exists(folder / "results")) return;
     try {
-      const report::SessionReport r =
-          report::BuildSessionReport(folder, {/*session_process=*/true, {}}, simulation::SimTruthSource());
+      const report::SessionReport r = report::BuildSessionReport(
+          folder, {/*session_process=*/true, {}}, simulation::SimTruthSource());
       if (r.have_planes) f->normal_rms_vs_truth_deg = r.normal_rms_vs_truth_deg;
       if (r.have_hall_vs_truth) {
         f->hall_vs_truth_alpha_deg = r.hall_rms_vs_truth[0];
@@ -213,9 +213,9 @@ void RunSweepCommand(const SweepArgs& args) {
   std::printf("\nsweep summary (%s):\n%s", (dir / "summary.csv").string().c_str(),
               outcome.table.c_str());
   try {  // the sweep's report across its points (each point's own report is already written)
-    const report::SweepReport sr =
-        report::WriteSweepReport(dir, plan, sweep::ExpandPoints(plan), simulation::SimTruthSource(),
-                                 /*write_point_reports=*/false, {/*session_process=*/true, {}});
+    (void)report::WriteSweepReport(dir, plan, sweep::ExpandPoints(plan),
+                                   simulation::SimTruthSource(),
+                                   /*write_point_reports=*/false, {/*session_process=*/true, {}});
     std::printf("sweep report: %s\n", (dir / "report.html").string().c_str());
   } catch (const std::exception& e) {
     std::printf("sweep report not written: %s\n", e.what());

@@ -206,7 +206,8 @@ Provenance ResolveProvenance(const fs::path& dir, bool session_process) {
       p.report_command_line = p.command_line;
       p.report_git_commit = p.git_commit;
       p.report_time_utc = IsoUtc(static_cast<long long>(store::SystemClock().NowNs()));
-      p.command_line = "unknown (the session recorded no provenance; this report was written later)";
+      p.command_line =
+          "unknown (the session recorded no provenance; this report was written later)";
       p.git_commit = "unknown (see report_git_commit)";
       p.msmcal_version = "unknown";
       p.build_type = "unknown";

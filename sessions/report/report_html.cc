@@ -209,8 +209,9 @@ std::string RenderTable(const Table& t) {
 std::string RenderVerdict(const std::vector<VerdictLine>& lines) {
   const Level overall = Overall(lines);
   std::ostringstream o;
-  o << "<section id=\"verdict\" class=\"" << ToString(overall) << "\"><h2>Verdict: <span class=\"badge "
-    << ToString(overall) << "\">" << ToString(overall) << "</span></h2>";
+  o << "<section id=\"verdict\" class=\"" << ToString(overall)
+    << "\"><h2>Verdict: <span class=\"badge " << ToString(overall) << "\">" << ToString(overall)
+    << "</span></h2>";
   if (lines.empty()) o << "<p>No figure could be judged (see Skipped below).</p>";
   o << "<ul>";
   for (const auto& l : lines)
@@ -225,16 +226,22 @@ std::string RenderChartPlace(const Chart& c) {
   std::ostringstream o;
   o << "<figure><div class=\"plot\"><canvas id=\"" << HtmlEscape(c.id)
     << "\" class=\"msmcal-plot\"></canvas></div><figcaption>" << HtmlEscape(c.caption)
-    << (c.caption.empty() ? "" : " ") << "Drag to zoom, double-click to reset.</figcaption></figure>";
+    << (c.caption.empty() ? "" : " ")
+    << "Drag to zoom, double-click to reset.</figcaption></figure>";
   return o.str();
 }
 
 std::string ChartsJson(const std::vector<Chart>& charts) {
   nlohmann::json all = nlohmann::json::array();
   for (const auto& c : charts) {
-    nlohmann::json j = {{"id", c.id},           {"title", c.title},     {"x_label", c.x_label},
-                        {"y_label", c.y_label}, {"categories", c.categories},
-                        {"y_reversed", c.y_reversed}, {"x_log", c.x_log}, {"y_log", c.y_log}};
+    nlohmann::json j = {{"id", c.id},
+                        {"title", c.title},
+                        {"x_label", c.x_label},
+                        {"y_label", c.y_label},
+                        {"categories", c.categories},
+                        {"y_reversed", c.y_reversed},
+                        {"x_log", c.x_log},
+                        {"y_log", c.y_log}};
     nlohmann::json series = nlohmann::json::array();
     for (const auto& s : c.series)
       series.push_back({{"name", s.name},

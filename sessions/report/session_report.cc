@@ -100,7 +100,8 @@ ChartSeries Series(const std::string& name, ChartSeries::Style style, const char
 }
 
 // alpha/beta/trans against time with +-sigma bands (mirror_planes.csv, sorted by t).
-void PoseTimeCharts(const std::vector<dataset::MirrorPlaneRow>& planes, std::vector<Chart>* charts) {
+void PoseTimeCharts(const std::vector<dataset::MirrorPlaneRow>& planes,
+                    std::vector<Chart>* charts) {
   std::vector<dataset::MirrorPlaneRow> p = planes;
   std::sort(p.begin(), p.end(), [](const auto& a, const auto& b) { return a.t_s < b.t_s; });
   const char* names[3] = {"alpha", "beta", "trans"};
@@ -112,8 +113,8 @@ void PoseTimeCharts(const std::vector<dataset::MirrorPlaneRow>& planes, std::vec
     c.title = std::string(names[k]) + " per trigger against pattern time, with its +-1 sigma band";
     c.x_label = "pattern time (s)";
     c.y_label = std::string(names[k]) + " (" + units[k] + ")";
-    ChartSeries s = Series(std::string(names[k]) + " (solver)", ChartSeries::Style::kPoints,
-                           colours[k]);
+    ChartSeries s =
+        Series(std::string(names[k]) + " (solver)", ChartSeries::Style::kPoints, colours[k]);
     for (const auto& r : p) {
       const double v = k == 0 ? r.alpha_deg : k == 1 ? r.beta_deg : r.trans_mm;
       const double sg = k == 0 ? r.sigma_alpha_deg : k == 1 ? r.sigma_beta_deg : r.sigma_trans_mm;
@@ -123,8 +124,9 @@ void PoseTimeCharts(const std::vector<dataset::MirrorPlaneRow>& planes, std::vec
       s.y_hi.push_back(v + sg);
     }
     c.series.push_back(s);
-    c.caption = "Each scan plane's pose from results/mirror_planes.csv; the band is +-1 sigma "
-                "(the solver's covariance, {0}'s error included).";
+    c.caption =
+        "Each scan plane's pose from results/mirror_planes.csv; the band is +-1 sigma "
+        "(the solver's covariance, {0}'s error included).";
     charts->push_back(c);
   }
 }
@@ -163,8 +165,7 @@ HallAnalysis AnalyseHall(const dataset::Recording& rec,
     const double n = std::max(1.5, defaults.profile.readings_per_bin);
     Eigen::Vector3d ss = Eigen::Vector3d::Zero();
     for (size_t i = 0; i < ta.size(); ++i) ss += (ba[i] - fg.actual.At(ta[i])).cwiseAbs2();
-    const Eigen::Vector3d sigma_b =
-        (ss / std::max<size_t>(1, ta.size()) / (1 - 1 / n)).cwiseSqrt();
+    const Eigen::Vector3d sigma_b = (ss / std::max<size_t>(1, ta.size()) / (1 - 1 / n)).cwiseSqrt();
     // Propagated through the model: J = d pose / d b (central differences) over the period. A
     // model that does not read the field (sine: time only) has J = 0; its floor is then the
     // linear model's refitted at the same delta_t, what one reading can tell at best.
@@ -196,7 +197,8 @@ HallAnalysis AnalyseHall(const dataset::Recording& rec,
       fo.delta_t_min_s = m.delta_t_s;
       fo.delta_t_max_s = m.delta_t_s + 1e-9;
       fo.grid_step_s = 1e-9;
-      floor2 = propagate(hall::FitHallModel(hall::HallModelKind::kLinear, setup.poses, fgf, fo).model);
+      floor2 =
+          propagate(hall::FitHallModel(hall::HallModelKind::kLinear, setup.poses, fgf, fo).model);
       a.floor_from_linear = true;
     }
     for (int k = 0; k < 3; ++k) {
@@ -230,8 +232,9 @@ HallAnalysis AnalyseHall(const dataset::Recording& rec,
         pts.y.push_back(p.pose[k]);
       }
       c.series = {curve, pts};
-      c.caption = "The final model on the foreground field of every reading, against the poses it "
-                  "was trained on.";
+      c.caption =
+          "The final model on the foreground field of every reading, against the poses it "
+          "was trained on.";
       a.charts.push_back(c);
     }
 
@@ -261,8 +264,9 @@ HallAnalysis AnalyseHall(const dataset::Recording& rec,
     mark.x = {m.delta_t_s * 1e3, m.delta_t_s * 1e3};
     mark.y = {std::max(cmin, 1e-300), std::max(cmax, 1e-300)};
     cost.series = {cs, mark};
-    cost.caption = "The chosen model's least-squares cost with delta_t held fixed; the estimate "
-                   "(red) should sit in a clear minimum inside the search range.";
+    cost.caption =
+        "The chosen model's least-squares cost with delta_t held fixed; the estimate "
+        "(red) should sit in a clear minimum inside the search range.";
     a.charts.push_back(cost);
 
     // Clock-edge residuals of both recordings.
@@ -283,8 +287,9 @@ HallAnalysis AnalyseHall(const dataset::Recording& rec,
     };
     edges.series = {edge_series(setup.actual, tba, "actual", kBlue),
                     edge_series(setup.background, tbb, "background", kOrange)};
-    edges.caption = "Each MCU clock edge minus the fitted time base (offset and rate); jitter is "
-                    "their RMS.";
+    edges.caption =
+        "Each MCU clock edge minus the fitted time base (offset and rate); jitter is "
+        "their RMS.";
     a.charts.push_back(edges);
     a.ok = true;
   } catch (const std::exception& e) {
@@ -360,8 +365,9 @@ SessionReport BuildSessionReport(const fs::path& dir, const ReportOptions& optio
         want.y.push_back(1.0);
       }
       fam.series = {got, want};
-      fam.caption = "sqrt of each family's posterior variance factor (summary.json "
-                    "variance_factors): 1 when the input covariances are honest.";
+      fam.caption =
+          "sqrt of each family's posterior variance factor (summary.json "
+          "variance_factors): 1 when the input covariances are honest.";
       charts.push_back(fam);
     }
 
@@ -379,8 +385,8 @@ SessionReport BuildSessionReport(const fs::path& dir, const ReportOptions& optio
       h.x_label = "sqrt(e^T C^-1 e) (sigma)";
       h.y_label = "dots per bin (count)";
       ChartSeries got = Series("held-out dots", ChartSeries::Style::kStep, kPurple);
-      ChartSeries want = Series("expected (Rayleigh, chi2 with 2 dof)", ChartSeries::Style::kLine,
-                                kGrey);
+      ChartSeries want =
+          Series("expected (Rayleigh, chi2 with 2 dof)", ChartSeries::Style::kLine, kGrey);
       std::vector<int> counts(bins, 0);
       for (double v : r) ++counts[std::min(bins - 1, static_cast<int>(v / w))];
       for (int k = 0; k < bins; ++k) {
@@ -393,8 +399,9 @@ SessionReport BuildSessionReport(const fs::path& dir, const ReportOptions& optio
         want.y.push_back(r.size() * w * x * std::exp(-x * x / 2));
       }
       h.series = {got, want};
-      h.caption = "Each held-out dot's error whitened by its predicted 2x2 covariance; the grey "
-                  "curve is the count an honest covariance gives.";
+      h.caption =
+          "Each held-out dot's error whitened by its predicted 2x2 covariance; the grey "
+          "curve is the count an honest covariance gives.";
       charts.push_back(h);
 
       Chart sc;
@@ -414,8 +421,9 @@ SessionReport BuildSessionReport(const fs::path& dir, const ReportOptions& optio
       one.x = {0, smax};
       one.y = {0, smax};
       sc.series = {pts, base, one};
-      sc.caption = "Each held-out dot's image error (proposed and baseline model) against the "
-                   "sigma the proposed model predicts for it.";
+      sc.caption =
+          "Each held-out dot's image error (proposed and baseline model) against the "
+          "sigma the proposed model predicts for it.";
       charts.push_back(sc);
 
       Chart byj;
@@ -440,8 +448,9 @@ SessionReport BuildSessionReport(const fs::path& dir, const ReportOptions& optio
         sorted.y_lo[i] = e.y_lo[idx[i]], sorted.y_hi[i] = e.y_hi[idx[i]];
       }
       byj.series = {sorted};
-      byj.caption = "Held-out beam's image error per trigger; the band reaches its predicted "
-                    "1-sigma.";
+      byj.caption =
+          "Held-out beam's image error per trigger; the band reaches its predicted "
+          "1-sigma.";
       charts.push_back(byj);
 
       std::vector<double> ne;
@@ -449,8 +458,9 @@ SessionReport BuildSessionReport(const fs::path& dir, const ReportOptions& optio
       rep.verdict.push_back(JudgeNees(ne));
       rep.verdict.push_back(JudgeEllipseCoverage(ne));
     } else {
-      rep.skipped.push_back("held-out beam plots and sigma honesty: "
-                            "results/validation_detail.csv missing");
+      rep.skipped.push_back(
+          "held-out beam plots and sigma honesty: "
+          "results/validation_detail.csv missing");
     }
     if (rec) rep.verdict.push_back(JudgePlanes(rep.planes, rep.triggers_planned));
 
@@ -470,8 +480,9 @@ SessionReport BuildSessionReport(const fs::path& dir, const ReportOptions& optio
       t.title = "Frames dropped by the solver";
       t.header = {"frame", "reason"};
       for (const auto& d : s.dropped_frames) t.rows.push_back({d.file, d.reason});
-      t.caption = "results/detections.csv has every frame's figures; results/diagnostics/ the "
-                  "annotated images.";
+      t.caption =
+          "results/detections.csv has every frame's figures; results/diagnostics/ the "
+          "annotated images.";
       rep.tables.push_back(t);
     }
 
@@ -480,8 +491,8 @@ SessionReport BuildSessionReport(const fs::path& dir, const ReportOptions& optio
     t1.title = "Table I style: mirror poses";
     t1.header = {"model", "validation error (deg RMS)", "validation error (px RMS)",
                  "normalised validation RMS"};
-    t1.rows.push_back({"baseline", Fmt("%.4f", rep.baseline_rms_deg),
-                       Fmt("%.3f", rep.baseline_rms_px), "-"});
+    t1.rows.push_back(
+        {"baseline", Fmt("%.4f", rep.baseline_rms_deg), Fmt("%.3f", rep.baseline_rms_px), "-"});
     t1.rows.push_back({"proposed", Fmt("%.4f", rep.validation_rms_deg),
                        Fmt("%.3f", rep.validation_rms_px),
                        Fmt("%.2f", rep.normalised_validation_rms)});
@@ -489,14 +500,14 @@ SessionReport BuildSessionReport(const fs::path& dir, const ReportOptions& optio
                  std::to_string(rep.validation_count) + " held-out dots, mean spanning angle " +
                  Fmt("%.2f", rep.mean_spanning_angle_deg) + " deg.";
     if (have_truth) {
-      t1.header.insert(t1.header.end(), {"plane normal vs truth (deg RMS)",
-                                         "alpha / beta vs truth (deg RMS)", "trans vs truth (mm RMS)"});
+      t1.header.insert(t1.header.end(),
+                       {"plane normal vs truth (deg RMS)", "alpha / beta vs truth (deg RMS)",
+                        "trans vs truth (mm RMS)"});
       t1.rows[0].insert(t1.rows[0].end(), {"-", "-", "-"});
-      t1.rows[1].insert(t1.rows[1].end(),
-                        {Fmt("%.4f", rep.normal_rms_vs_truth_deg),
-                         Fmt("%.4f", rep.alpha_rms_vs_truth_deg) + " / " +
-                             Fmt("%.4f", rep.beta_rms_vs_truth_deg),
-                         Fmt("%.4f", rep.trans_rms_vs_truth_mm)});
+      t1.rows[1].insert(t1.rows[1].end(), {Fmt("%.4f", rep.normal_rms_vs_truth_deg),
+                                           Fmt("%.4f", rep.alpha_rms_vs_truth_deg) + " / " +
+                                               Fmt("%.4f", rep.beta_rms_vs_truth_deg),
+                                           Fmt("%.4f", rep.trans_rms_vs_truth_mm)});
     }
     rep.tables.insert(rep.tables.begin(), t1);
   } else {
@@ -524,19 +535,18 @@ SessionReport BuildSessionReport(const fs::path& dir, const ReportOptions& optio
                  "delta_t (ms)"};
     for (const auto& c : comparison) {
       if (c.model == rep.hall_model) rep.delta_t_sigma_s = c.delta_t_std_s;
-      auto pm = [](double m, double s, const char* f) {
-        return Fmt(f, m) + " +- " + Fmt(f, s);
-      };
+      auto pm = [](double m, double s, const char* f) { return Fmt(f, m) + " +- " + Fmt(f, s); };
       t2.rows.push_back({c.model + (c.model == rep.hall_model ? " (chosen)" : ""),
                          pm(c.test_rms[0], c.test_rms_std[0], "%.4f"),
                          pm(c.test_rms[1], c.test_rms_std[1], "%.4f"),
                          pm(c.test_rms[2], c.test_rms_std[2], "%.4f"),
                          pm(c.delta_t_s * 1e3, c.delta_t_std_s * 1e3, "%.3f")});
     }
-    t2.caption = "Mean +- std over the random train/test splits (results/hall_model.yaml). Final "
-                 "model: " +
-                 rep.hall_model + ", delta_t " + Fmt("%.4f ms", rep.delta_t_s * 1e3) +
-                 (have_truth ? Fmt(" (truth %.4f ms)", rep.delta_t_truth_s * 1e3) : "") + ".";
+    t2.caption =
+        "Mean +- std over the random train/test splits (results/hall_model.yaml). Final "
+        "model: " +
+        rep.hall_model + ", delta_t " + Fmt("%.4f ms", rep.delta_t_s * 1e3) +
+        (have_truth ? Fmt(" (truth %.4f ms)", rep.delta_t_truth_s * 1e3) : "") + ".";
     rep.tables.push_back(t2);
 
     const hall::HallCalibrationOptions defaults;
@@ -545,10 +555,9 @@ SessionReport BuildSessionReport(const fs::path& dir, const ReportOptions& optio
     // The time base's fit figures (results::ReadHallModelYaml reads offset, rate and period).
     try {
       const YAML::Node tb = YAML::LoadFile(hall_yaml.string())["time_base"];
-      rep.verdict.push_back(JudgeClock(Num(tb, "jitter_rms_us"),
-                                       static_cast<int>(Num(tb, "edges_used")),
-                                       static_cast<int>(Num(tb, "edges_missing")),
-                                       static_cast<int>(Num(tb, "edges_rejected"))));
+      rep.verdict.push_back(JudgeClock(
+          Num(tb, "jitter_rms_us"), static_cast<int>(Num(tb, "edges_used")),
+          static_cast<int>(Num(tb, "edges_missing")), static_cast<int>(Num(tb, "edges_rejected"))));
     } catch (const std::exception& e) {
       throw std::runtime_error(hall_yaml.string() + ": time_base: " + e.what());
     }
@@ -565,8 +574,8 @@ SessionReport BuildSessionReport(const fs::path& dir, const ReportOptions& optio
         if (model.test_rms) {
           rep.verdict.push_back(JudgeHallResidual(rep.test_rms, rep.noise_floor));
           if (a.floor_from_linear)
-            rep.verdict.back().figure += " (floor through the linear model: the " +
-                                         rep.hall_model + " model does not read the field)";
+            rep.verdict.back().figure += " (floor through the linear model: the " + rep.hall_model +
+                                         " model does not read the field)";
         }
         for (auto& c : a.charts) charts.push_back(std::move(c));
       } else {

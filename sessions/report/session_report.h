@@ -42,7 +42,7 @@ struct SessionReport {
   double delta_t_s = 0, delta_t_sigma_s = 0, delta_t_truth_s = 0;
   double test_rms[3] = {0, 0, 0};  // alpha deg, beta deg, trans mm
   bool have_noise_floor = false;
-  double noise_floor[3] = {0, 0, 0};  // single-reading noise through the model, same units
+  double noise_floor[3] = {0, 0, 0};     // single-reading noise through the model, same units
   bool noise_floor_from_linear = false;  // the model ignores the field (sine): via the linear one
   double reading_noise_uT[3] = {0, 0, 0};
   bool have_hall_vs_truth = false;

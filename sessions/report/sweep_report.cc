@@ -32,9 +32,8 @@ struct PointFigures {
 }  // namespace
 
 SweepReport BuildSweepReport(const fs::path& dir, const sweep::SweepPlan& plan,
-                             const std::vector<sweep::SweepPoint>& points,
-                             const TruthSource& truth, bool write_point_reports,
-                             const ReportOptions& point_options) {
+                             const std::vector<sweep::SweepPoint>& points, const TruthSource& truth,
+                             bool write_point_reports, const ReportOptions& point_options) {
   SweepReport rep;
   rep.points = static_cast<int>(points.size());
   const sweep::SweepState state = sweep::ReadSweepState(dir / "sweep_state.json");
@@ -88,10 +87,10 @@ SweepReport BuildSweepReport(const fs::path& dir, const sweep::SweepPlan& plan,
   t.title = "Points";
   t.header = {"point"};
   for (const auto& a : plan.axes) t.header.push_back(sweep::ShortAxisName(a.path));
-  t.header.insert(t.header.end(),
-                  {"repeat", "status", "verdict", "validation (deg RMS)", "normal vs truth (deg RMS)",
-                   "Hall model", "Hall alpha / beta (deg RMS)", "Hall trans (mm RMS)",
-                   "delta_t (ms)"});
+  t.header.insert(
+      t.header.end(),
+      {"repeat", "status", "verdict", "validation (deg RMS)", "normal vs truth (deg RMS)",
+       "Hall model", "Hall alpha / beta (deg RMS)", "Hall trans (mm RMS)", "delta_t (ms)"});
   for (size_t i = 0; i < points.size(); ++i) {
     std::vector<std::string> row = {points[i].name};
     for (const auto& [path, value] : points[i].values) row.push_back(value);
@@ -110,9 +109,8 @@ SweepReport BuildSweepReport(const fs::path& dir, const sweep::SweepPlan& plan,
     row.push_back(f.ok && r.have_hall ? Fmt("%.4f", r.test_rms[2]) : "-");
     row.push_back(f.ok && r.have_hall ? Fmt("%.3f", r.delta_t_s * 1e3) : "-");
     t.rows.push_back(row);
-    t.row_links.push_back(fs::exists(dir / points[i].name / "report.html")
-                              ? points[i].name + "/report.html"
-                              : "");
+    t.row_links.push_back(
+        fs::exists(dir / points[i].name / "report.html") ? points[i].name + "/report.html" : "");
   }
   t.caption = "Each point's name links its own report.";
 
@@ -124,7 +122,9 @@ SweepReport BuildSweepReport(const fs::path& dir, const sweep::SweepPlan& plan,
   };
   const std::vector<Metric> metrics = {
       {"normal", "plane normal error vs truth (deg RMS)",
-       [&](const SessionReport& r) { return r.have_planes && truth ? r.normal_rms_vs_truth_deg : NAN; }},
+       [&](const SessionReport& r) {
+         return r.have_planes && truth ? r.normal_rms_vs_truth_deg : NAN;
+       }},
       {"validation", "validation error (deg RMS)",
        [](const SessionReport& r) { return r.have_planes ? r.validation_rms_deg : NAN; }},
       {"hall", "Hall test RMS alpha (deg)",
@@ -182,9 +182,8 @@ SweepReport BuildSweepReport(const fs::path& dir, const sweep::SweepPlan& plan,
 }
 
 SweepReport WriteSweepReport(const fs::path& dir, const sweep::SweepPlan& plan,
-                             const std::vector<sweep::SweepPoint>& points,
-                             const TruthSource& truth, bool write_point_reports,
-                             const ReportOptions& point_options) {
+                             const std::vector<sweep::SweepPoint>& points, const TruthSource& truth,
+                             bool write_point_reports, const ReportOptions& point_options) {
   SweepReport r = BuildSweepReport(dir, plan, points, truth, write_point_reports, point_options);
   common::WriteFileAtomically(dir / "report.html", r.html);
   return r;

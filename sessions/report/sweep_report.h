@@ -25,13 +25,11 @@ struct SweepReport {
 // `point_options`); else reads the figures without writing. A point whose report cannot be built
 // is listed with the reason, never stops the sweep report.
 SweepReport BuildSweepReport(const std::filesystem::path& dir, const sweep::SweepPlan& plan,
-                             const std::vector<sweep::SweepPoint>& points,
-                             const TruthSource& truth, bool write_point_reports,
-                             const ReportOptions& point_options);
+                             const std::vector<sweep::SweepPoint>& points, const TruthSource& truth,
+                             bool write_point_reports, const ReportOptions& point_options);
 // BuildSweepReport, then writes dir/report.html.
 SweepReport WriteSweepReport(const std::filesystem::path& dir, const sweep::SweepPlan& plan,
-                             const std::vector<sweep::SweepPoint>& points,
-                             const TruthSource& truth, bool write_point_reports,
-                             const ReportOptions& point_options);
+                             const std::vector<sweep::SweepPoint>& points, const TruthSource& truth,
+                             bool write_point_reports, const ReportOptions& point_options);
 
 }  // namespace msmcal::report

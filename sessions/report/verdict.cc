@@ -18,7 +18,7 @@ Level Worse(Level a, Level b) { return static_cast<int>(a) > static_cast<int>(b)
 
 // Inverse of the standard normal CDF (Acklam's rational approximation, relative error < 1.2e-9).
 double NormalQuantile(double p) {
-  static const double a[] = {-3.969683028665376e+01, 2.209460984245205e+02, -2.759285104469687e+02,
+  static const double a[] = {-3.969683028665376e+01, 2.209460984245205e+02,  -2.759285104469687e+02,
                              1.383577518672690e+02,  -3.066479806614716e+01, 2.506628277459239e+00};
   static const double b[] = {-5.447609879822406e+01, 1.615858368580409e+02, -1.556989798598866e+02,
                              6.680131188771972e+01, -1.328068155288572e+01};
@@ -79,8 +79,9 @@ VerdictLine JudgeNees(const std::vector<double>& normalised_errors) {
   const double nees = n > 0 ? sum / n : NAN;
   const double lo = n > 0 ? ChiSquareQuantile((1 - kNeesPassProbability) / 2, 2 * n) / n : NAN;
   const double hi = n > 0 ? ChiSquareQuantile((1 + kNeesPassProbability) / 2, 2 * n) / n : NAN;
-  v.figure = "mean NEES " + Fmt("%.2f", nees) + " over " + std::to_string(normalised_errors.size()) +
-             " dots (expected 2; 95 % interval " + Fmt("%.2f", lo) + " .. " + Fmt("%.2f", hi) + ")";
+  v.figure = "mean NEES " + Fmt("%.2f", nees) + " over " +
+             std::to_string(normalised_errors.size()) + " dots (expected 2; 95 % interval " +
+             Fmt("%.2f", lo) + " .. " + Fmt("%.2f", hi) + ")";
   v.rule = "pass inside the 95 % interval of chi2(2N)/N, warn within a factor " +
            Fmt("%g", kNeesWarnFactor) + " of 2, fail beyond";
   if (n == 0 || !std::isfinite(nees)) {
@@ -126,16 +127,16 @@ VerdictLine JudgeEllipseCoverage(const std::vector<double>& normalised_errors) {
     got += (k > 1 ? " / " : "") + Fmt("%.0f", 100 * f);
     want += (k > 1 ? " / " : "") + Fmt("%.0f", 100 * p);
   }
-  v.figure = got + " % of " + std::to_string(normalised_errors.size()) + " dots (expected " + want +
-             " %)";
+  v.figure =
+      got + " % of " + std::to_string(normalised_errors.size()) + " dots (expected " + want + " %)";
   return v;
 }
 
 VerdictLine JudgePlanes(int planes_solved, int triggers_planned) {
   VerdictLine v;
   v.name = "scan planes solved against triggers planned";
-  v.rule = "pass at >= " + Fmt("%.0f", 100 * kPlanesPass) + " %, warn at >= " +
-           Fmt("%.0f", 100 * kPlanesWarn) + " %, fail below";
+  v.rule = "pass at >= " + Fmt("%.0f", 100 * kPlanesPass) +
+           " %, warn at >= " + Fmt("%.0f", 100 * kPlanesWarn) + " %, fail below";
   if (triggers_planned <= 0) {
     v.level = Level::kFail;
     v.figure = std::to_string(planes_solved) + " planes, no trigger planned";
@@ -152,8 +153,8 @@ VerdictLine JudgeDroppedFrames(int dropped, int frames, const std::string& main_
                                int main_reason_count) {
   VerdictLine v;
   v.name = "frames dropped by the solver";
-  v.rule = "pass at <= " + Fmt("%.0f", 100 * kDroppedPass) + " % of the frames, warn at <= " +
-           Fmt("%.0f", 100 * kDroppedWarn) + " %, fail above";
+  v.rule = "pass at <= " + Fmt("%.0f", 100 * kDroppedPass) +
+           " % of the frames, warn at <= " + Fmt("%.0f", 100 * kDroppedWarn) + " %, fail above";
   const double f = frames > 0 ? static_cast<double>(dropped) / frames : (dropped > 0 ? 1.0 : 0.0);
   v.figure = std::to_string(dropped) + " of " + std::to_string(frames) + " (" +
              Fmt("%.0f", 100 * f) + " %)";
@@ -237,8 +238,8 @@ VerdictLine JudgeReadingsLost(long long lost, long long dropped, long long expec
              (dropped < 0 ? std::string("dropped not recorded (no journal)")
                           : std::to_string(dropped) + " dropped by the recorder") +
              ", of " + std::to_string(expected) + " expected (" + Fmt("%.3g", 100 * f) + " %)";
-  v.rule = "pass at <= " + Fmt("%g", 100 * kReadingsLostPass) + " %, warn at <= " +
-           Fmt("%g", 100 * kReadingsLostWarn) + " %, fail above";
+  v.rule = "pass at <= " + Fmt("%g", 100 * kReadingsLostPass) +
+           " %, warn at <= " + Fmt("%g", 100 * kReadingsLostWarn) + " %, fail above";
   v.level = f <= kReadingsLostPass   ? Level::kPass
             : f <= kReadingsLostWarn ? Level::kWarn
                                      : Level::kFail;

@@ -78,8 +78,7 @@ VerdictLine JudgeHallResidual(const double test_rms[3], const double noise_floor
 inline constexpr double kDeltaTSigmaPassS = 0.2e-3;
 inline constexpr double kDeltaTSigmaWarnS = 1.0e-3;
 inline constexpr double kDeltaTBoundFraction = 0.02;
-VerdictLine JudgeDeltaT(double delta_t_s, double sigma_s, double search_min_s,
-                        double search_max_s);
+VerdictLine JudgeDeltaT(double delta_t_s, double sigma_s, double search_min_s, double search_max_s);
 
 // The Hall MCU's clock edges (time base fit): pass at jitter <= kJitterPassUs with no edge
 // missing or rejected, warn at jitter <= kJitterWarnUs with at most kEdgesWarnFraction of the
@@ -87,8 +86,7 @@ VerdictLine JudgeDeltaT(double delta_t_s, double sigma_s, double search_min_s,
 inline constexpr double kJitterPassUs = 5.0;
 inline constexpr double kJitterWarnUs = 50.0;
 inline constexpr double kEdgesWarnFraction = 0.05;
-VerdictLine JudgeClock(double jitter_rms_us, int edges_used, int edges_missing,
-                       int edges_rejected);
+VerdictLine JudgeClock(double jitter_rms_us, int edges_used, int edges_missing, int edges_rejected);
 
 // Hall readings lost on the link (gaps in the MCU time stamps) or dropped by the recorder (queue
 // full), over the readings expected: pass at <= kReadingsLostPass of them, warn at

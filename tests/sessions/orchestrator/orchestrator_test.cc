@@ -147,8 +147,8 @@ TEST(Orchestrator, RunsACompleteSessionThroughTheMocksAndTheSolverRecoversTruth)
   results::WriteMirrorPlanesCsv(dir / "results" / "mirror_planes.csv", out.planes);
   results::WriteMirrorPosesSummary(dir / "results" / "summary.json",
                                    results::SummariseSolve(out, /*solve_time_s=*/1.0));
-  const report::SessionReport report =
-      report::BuildSessionReport(dir, {/*session_process=*/true, progress}, simulation::SimTruthSource());
+  const report::SessionReport report = report::BuildSessionReport(
+      dir, {/*session_process=*/true, progress}, simulation::SimTruthSource());
   EXPECT_TRUE(report.have_planes);
   EXPECT_EQ(report.planes, static_cast<int>(out.planes.size()));
   EXPECT_NEAR(report.normal_rms_vs_truth_deg, rms_deg, 1e-9);

@@ -107,7 +107,8 @@ TEST(Provenance, ResolveWithoutStoredProvenanceSaysTheCommandIsUnknown) {
   const Provenance p = ResolveProvenance(tmp.path(), /*session_process=*/false);
   EXPECT_NE(p.command_line.find("unknown"), std::string::npos);
   EXPECT_NE(p.report_command_line.find("report_test"), std::string::npos);
-  const Provenance s = ResolveProvenance(fs::path(tmp.path()) / "nothing", /*session_process=*/true);
+  const Provenance s =
+      ResolveProvenance(fs::path(tmp.path()) / "nothing", /*session_process=*/true);
   EXPECT_EQ(s.git_commit, GitCommit());
 }
 

@@ -58,7 +58,8 @@ fs::path SolvedFolder(const fs::path& dir, double error_scale) {
   s.validation_rms_deg = 0.01;
   s.validation_count = 40;
   s.variance_factors = {{"corners", 1.1, 100}, {"sliding_dots", 0.9, 50}};
-  s.dropped_frames = {{"step1/0003.png", "too few dots"}, {"step1/0004.png", "too few dots"},
+  s.dropped_frames = {{"step1/0003.png", "too few dots"},
+                      {"step1/0004.png", "too few dots"},
                       {"step2/0001.png", "no board"}};
   results::WriteMirrorPosesSummary(dir / "results" / "summary.json", s);
   return dir;
