@@ -312,7 +312,17 @@ SessionReport BuildSessionReport(const fs::path& dir, const ReportOptions& optio
 
   std::optional<dataset::Recording> rec;
   if (fs::exists(dir / "session.yaml")) {
-    rec = interchange::ReadRecording(dir, interchange::ReadParts{/*hall=*/true, /*marg=*/false});
+    // A Hall recording that cannot be read (cut short, a fault) must not cost the report its
+    // other parts: read without hall/ then, and say so.
+    try {
+      rec = interchange::ReadRecording(dir, interchange::ReadParts{/*hall=*/true, /*marg=*/false});
+    } catch (const std::exception& e) {
+      rec = interchange::ReadRecording(dir, interchange::ReadParts{/*hall=*/false, /*marg=*/false});
+      rep.skipped.push_back(
+          std::string("Hall recordings unreadable (noise floor, lost readings and "
+                      "Hall plots left out): ") +
+          e.what());
+    }
     rep.triggers_planned = static_cast<int>(rec->triggers.size());
   } else {
     rep.skipped.push_back("session.yaml missing: triggers planned and Hall recordings unknown");

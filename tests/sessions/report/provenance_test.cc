@@ -4,6 +4,7 @@
 
 #include <fstream>
 #include <nlohmann/json.hpp>
+#include <regex>
 
 #include "sessions/report/build_info.h"
 #include "sessions/report/sha256.h"
@@ -34,7 +35,7 @@ TEST(Provenance, BuildInfoIsCaptured) {
   // A git checkout gives a hex commit (maybe "-dirty"), else "unknown"; never empty.
   const std::string c = GitCommit();
   ASSERT_FALSE(c.empty());
-  EXPECT_TRUE(c == "unknown" || c.find_first_not_of("0123456789abcdef") >= 7) << c;
+  EXPECT_TRUE(c == "unknown" || std::regex_search(c, std::regex("[0-9a-f]{7,}"))) << c;
 }
 
 TEST(Provenance, CollectsThisProcessAndHashesTheFolderConfiguration) {
