@@ -84,7 +84,6 @@ SweepReport BuildSweepReport(const fs::path& dir, const sweep::SweepPlan& plan,
   // Table of points.
   Table t;
   t.id = "table-points";
-  t.title = "Points";
   t.header = {"point"};
   for (const auto& a : plan.axes) t.header.push_back(sweep::ShortAxisName(a.path));
   t.header.insert(

@@ -184,6 +184,12 @@ def main():
     try:
         shutil.rmtree(out, ignore_errors=True)
         os.makedirs(out)
+        # Bad input: a folder that is neither a session nor a sweep is named in the error.
+        empty = os.path.join(out, "empty")
+        os.makedirs(empty)
+        r = run([msmcal, "report", empty])
+        if r.returncode == 0 or "neither a session folder" not in r.stdout or empty not in r.stdout:
+            fail("msmcal report on an empty folder: exit %d\n%s" % (r.returncode, r.stdout))
         with open(os.path.join(out, "sim.yaml"), "w") as f:
             f.write(SIM)
         session = os.path.join(out, "demo")

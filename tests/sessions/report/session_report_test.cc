@@ -129,6 +129,20 @@ TEST(SessionReport, HonestSolveOpensOnAPassingVerdictWithTablesAndPlots) {
   EXPECT_NE(r.text.find("[pass] sigma honest"), std::string::npos) << r.text;
 }
 
+TEST(SessionReport, MargCostsBeforeAndAfterAsATableAndAPlot) {
+  testing::TempDir tmp;
+  testing::Spit(tmp.path() / "results" / "marg_calibration.yaml",
+                "format: msmcal-marg-calibration/1\nvalidation:\n  mean_cost_raw: 0.022\n"
+                "  mean_cost_compensated: 0.0012\n  mean_cost_aligned_compensated: 1.3e-05\n");
+  const SessionReport r = BuildSessionReport(tmp.path(), {}, {});
+  const Chart* m = FindChart(r, "plot-marg");
+  ASSERT_NE(m, nullptr);
+  ASSERT_EQ(m->series.size(), 1u);
+  EXPECT_EQ(m->series[0].y, (std::vector<double>{0.022, 0.0012, 1.3e-5}));
+  EXPECT_NE(r.html.find("<table id=\"table-marg\">"), std::string::npos);
+  EXPECT_NE(r.html.find("<td>0.0012</td>"), std::string::npos);
+}
+
 TEST(SessionReport, OverConfidentSigmasFailTheVerdict) {
   testing::TempDir tmp;
   SolvedFolder(tmp.path(), 2.0);
