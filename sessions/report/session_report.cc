@@ -606,6 +606,7 @@ SessionReport BuildSessionReport(const fs::path& dir, const ReportOptions& optio
   // Hall readings lost on the link and dropped by the recorder.
   if (rec && (rec->hall_actual || rec->hall_background)) {
     long long expected = 0, lost = 0, dropped = -1;
+    std::string by_recording;
     if (rec->hall_actual) lost += LostReadings(*rec->hall_actual, &expected);
     if (rec->hall_background) lost += LostReadings(*rec->hall_background, &expected);
     if (fs::exists(dir / store::kSessionDbName)) {
@@ -613,13 +614,17 @@ SessionReport BuildSessionReport(const fs::path& dir, const ReportOptions& optio
         const store::SystemClock clock;
         const auto journal = store::SessionStore::Open(dir, clock, /*read_only=*/true);
         for (const char* name : {"background", "actual"})
-          if (const auto v = journal->GetMeta(std::string("hall.") + name + ".readings_dropped"))
+          if (const auto v = journal->GetMeta(std::string("hall.") + name + ".readings_dropped")) {
             dropped = std::max(0LL, dropped) + std::stoll(*v);
+            by_recording += std::string(by_recording.empty() ? "" : ", ") + name + " " + *v;
+          }
       } catch (const std::exception& e) {
         rep.skipped.push_back(std::string("recorder drops: journal unreadable: ") + e.what());
       }
     }
     rep.verdict.push_back(JudgeReadingsLost(lost, dropped, expected));
+    if (!by_recording.empty())
+      rep.verdict.back().figure += " (recorder queue full: " + by_recording + ")";
   }
 
   // ------------------------------------------------------------------------------ MARG

@@ -169,8 +169,11 @@ TEST(Orchestrator, RunsACompleteSessionThroughTheMocksAndTheSolverRecoversTruth)
     EXPECT_EQ(journal->GetMeta("hall.background.readings_dropped"), "0");
     EXPECT_EQ(journal->GetMeta("hall.actual.readings_dropped"), "0");
   }
-  EXPECT_NE(report.text.find("Hall readings dropped (recorder queue full): background 0, actual 0"),
+  EXPECT_NE(report.text.find("[pass] Hall readings lost or dropped: 0 lost on the link, 0 dropped "
+                             "by the recorder"),
             std::string::npos)
+      << report.text;
+  EXPECT_NE(report.text.find("(recorder queue full: background 0, actual 0)"), std::string::npos)
       << report.text;
 }
 
