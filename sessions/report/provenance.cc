@@ -181,7 +181,15 @@ void WriteProvenance(const fs::path& summary_json, const Provenance& p) {
     j["report_time_utc"] = p.report_time_utc;
   }
   all["provenance"] = j;
-  common::WriteFileAtomically(summary_json, all.dump(2) + "\n");
+  // Unchanged content is not rewritten: a sweep's resume compares results/ by mtime too.
+  const std::string text = all.dump(2) + "\n";
+  if (fs::exists(summary_json)) {
+    std::ifstream in(summary_json, std::ios::binary);
+    std::ostringstream old;
+    old << in.rdbuf();
+    if (old.str() == text) return;
+  }
+  common::WriteFileAtomically(summary_json, text);
 }
 
 Provenance ResolveProvenance(const fs::path& dir, bool session_process) {

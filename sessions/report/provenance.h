@@ -46,7 +46,8 @@ Provenance CollectProvenance(const std::filesystem::path& dir);
 // results/summary.json "provenance" (null when absent). Throws std::runtime_error naming the file
 // and the field when the key exists but is malformed.
 std::optional<Provenance> ReadProvenance(const std::filesystem::path& summary_json);
-// Replaces the "provenance" key of `summary_json` (created if absent), keeping the other keys.
+// Replaces the "provenance" key of `summary_json` (created if absent), keeping the other keys; a
+// file whose text would not change is left untouched (same mtime).
 void WriteProvenance(const std::filesystem::path& summary_json, const Provenance& provenance);
 
 // The session's provenance for a report of `dir`: results/summary.json's when it has one (with

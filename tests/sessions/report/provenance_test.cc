@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <chrono>
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <regex>
@@ -70,6 +71,11 @@ TEST(Provenance, RoundTripsThroughSummaryJsonKeepingOtherKeys) {
   EXPECT_EQ(back->config_sha256, p.config_sha256);
   const auto all = nlohmann::json::parse(testing::Slurp(f));
   EXPECT_EQ(all["mirror_poses"]["beams"], 3);
+  // The same provenance again: the file is not rewritten.
+  const auto mtime = fs::last_write_time(f);
+  fs::last_write_time(f, mtime - std::chrono::hours(1));
+  WriteProvenance(f, p);
+  EXPECT_EQ(fs::last_write_time(f), mtime - std::chrono::hours(1));
 }
 
 TEST(Provenance, MalformedKeyNamesTheFileAndField) {
