@@ -603,28 +603,49 @@ SessionReport BuildSessionReport(const fs::path& dir, const ReportOptions& optio
         "did not run or failed)");
   }
 
-  // Hall readings lost on the link and dropped by the recorder.
+  // Hall readings lost on the link and dropped by the recorder. Lost: the driver's count as the
+  // journal has it (hall.<name>.readings_lost), else the gaps in the MCU time stamps.
   if (rec && (rec->hall_actual || rec->hall_background)) {
     long long expected = 0, lost = 0, dropped = -1;
     std::string by_recording;
-    if (rec->hall_actual) lost += LostReadings(*rec->hall_actual, &expected);
-    if (rec->hall_background) lost += LostReadings(*rec->hall_background, &expected);
+    std::map<std::string, std::string> meta;
     if (fs::exists(dir / store::kSessionDbName)) {
       try {
         const store::SystemClock clock;
         const auto journal = store::SessionStore::Open(dir, clock, /*read_only=*/true);
-        for (const char* name : {"background", "actual"})
-          if (const auto v = journal->GetMeta(std::string("hall.") + name + ".readings_dropped")) {
-            dropped = std::max(0LL, dropped) + std::stoll(*v);
-            by_recording += std::string(by_recording.empty() ? "" : ", ") + name + " " + *v;
-          }
+        meta = journal->AllMeta();
       } catch (const std::exception& e) {
         rep.skipped.push_back(std::string("recorder drops: journal unreadable: ") + e.what());
+      }
+    }
+    bool from_journal = false;
+    for (const char* name : {"background", "actual"}) {
+      const auto& hall_rec =
+          std::string(name) == "actual" ? rec->hall_actual : rec->hall_background;
+      if (!hall_rec) continue;
+      long long gaps_expected = 0;
+      const long long gaps = LostReadings(*hall_rec, &gaps_expected);
+      const auto l = meta.find(std::string("hall.") + name + ".readings_lost");
+      if (l != meta.end()) {
+        const long long n = std::stoll(l->second);
+        lost += n;
+        expected += static_cast<long long>(hall_rec->readings.size()) + n;
+        from_journal = true;
+      } else {
+        lost += gaps;
+        expected += gaps_expected;
+      }
+      const auto d = meta.find(std::string("hall.") + name + ".readings_dropped");
+      if (d != meta.end()) {
+        dropped = std::max(0LL, dropped) + std::stoll(d->second);
+        by_recording += std::string(by_recording.empty() ? "" : ", ") + name + " " + d->second;
       }
     }
     rep.verdict.push_back(JudgeReadingsLost(lost, dropped, expected));
     if (!by_recording.empty())
       rep.verdict.back().figure += " (recorder queue full: " + by_recording + ")";
+    rep.verdict.back().figure += from_journal ? "; lost as the driver counted them"
+                                              : "; lost from gaps in the MCU time stamps";
   }
 
   // ------------------------------------------------------------------------------ MARG
