@@ -3,8 +3,9 @@
 // camera (rendering the rig simulator's scene for the current setup) and a mock Hall MCU (pty),
 // runs a complete calibration session through the real drivers and the orchestrator, then solves
 // (`msmcal solve`), calibrates the Hall sensor (`msmcal hall calibrate`, `msmcal hall predict`) in
-// this process (sessions/results/finish_steps.h), and prints the Table I/II-style report compared with
-// the simulator's truth; the HTML report goes to DIR/report.html.
+// this process (sessions/results/finish_steps.h), and prints the verdict and the Table I/II-style
+// report compared with the simulator's truth; the HTML report (sessions/report: verdict, tables,
+// interactive plots, provenance) goes to DIR/report.html.
 // `--guided`: the operator at the rig is prompted on this terminal for every set-up (the guided
 // mode, docs/guided.md): the answers go to a ConsoleOperator in front of the simulated world;
 // live gate figures are printed and annotated previews written to DIR/previews.
@@ -23,7 +24,7 @@
 #include "mocks/rig/sim_options.h"
 #include "sessions/interchange/interchange_io.h"
 #include "sessions/orchestrator/orchestrator.h"
-#include "sessions/orchestrator/report.h"
+#include "sessions/report/session_report.h"
 #include "sessions/store/session_store.h"
 #include "sessions/store/transfer.h"
 #include "simulation/truth/truth_comparison.h"
@@ -95,9 +96,8 @@ void RunDemo(const DemoArgs& args) {
     std::printf("session stored in %s\n", args.store.c_str());
     notes.push_back("session stored in " + args.store);
   }
-  const orchestrator::SessionReport report =
-      orchestrator::BuildSessionReport(out, notes, simulation::SimTruthSource());
-  interchange::WriteFileAtomically(out / "report.html", report.html);
+  const report::SessionReport report = report::WriteSessionReport(
+      out, {/*session_process=*/true, notes}, simulation::SimTruthSource());
   std::printf("\n%s", report.text.c_str());
   std::printf("\nreport: %s   (total %.1f s)\n", (out / "report.html").string().c_str(), elapsed());
   if (!finished.ok()) throw CLI::RuntimeError(1);

@@ -17,7 +17,7 @@
 #include "mocks/rig/sim_options.h"
 #include "sessions/interchange/interchange_io.h"
 #include "sessions/orchestrator/orchestrator.h"
-#include "sessions/orchestrator/report.h"
+#include "sessions/report/session_report.h"
 #include "simulation/truth/truth_comparison.h"
 
 namespace msmcal::app {
@@ -79,9 +79,8 @@ void RunResume(const ResumeArgs& args) {
                              "(re-run a replay with `msmcal replay`)");
   }
   const FinishResult finished = FinishSession(dir, FinishOptions{}, &notes);
-  const orchestrator::SessionReport report =
-      orchestrator::BuildSessionReport(dir, notes, simulation::SimTruthSource());
-  interchange::WriteFileAtomically(dir / "report.html", report.html);
+  const report::SessionReport report = report::WriteSessionReport(
+      dir, {/*session_process=*/true, notes}, simulation::SimTruthSource());
   std::printf("\n%s", report.text.c_str());
   std::printf("\nreport: %s   (resume took %.1f s)\n", (dir / "report.html").string().c_str(),
               elapsed());

@@ -28,7 +28,7 @@
 #include "drivers/hall_mcu/hall_mcu_config.h"
 #include "sessions/interchange/interchange_io.h"
 #include "sessions/orchestrator/orchestrator.h"
-#include "sessions/orchestrator/report.h"
+#include "sessions/report/session_report.h"
 #include "simulation/truth/truth_comparison.h"
 
 namespace msmcal::app {
@@ -106,9 +106,8 @@ void RunSessionRun(const SessionRunArgs& args) {
   };
   (void)RunLabAcquisition(out, lab);
   const FinishResult finished = FinishSession(out, FinishOptions{}, &notes);
-  const orchestrator::SessionReport report =
-      orchestrator::BuildSessionReport(out, notes, simulation::SimTruthSource());
-  interchange::WriteFileAtomically(out / "report.html", report.html);
+  const report::SessionReport report = report::WriteSessionReport(
+      out, {/*session_process=*/true, notes}, simulation::SimTruthSource());
   std::printf("\n%s\nreport: %s\n", report.text.c_str(), (out / "report.html").string().c_str());
   if (!finished.ok()) throw CLI::RuntimeError(1);
 }

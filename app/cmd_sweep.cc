@@ -25,7 +25,8 @@
 #include "mocks/rig/truth_io.h"
 #include "sessions/interchange/interchange_io.h"
 #include "sessions/orchestrator/orchestrator.h"
-#include "sessions/orchestrator/report.h"
+#include "sessions/report/session_report.h"
+#include "sessions/report/sweep_report.h"
 #include "sessions/store/session_store.h"
 #include "sessions/sweep/sweep_plan.h"
 #include "sessions/sweep/sweep_runner.h"
@@ -183,9 +184,8 @@ void RunSweepCommand(const SweepArgs& args) {
     std::vector<std::string> notes;
     const FinishResult r = FinishSession(folder, fo, &notes);
     try {  // the point's report, as `msmcal demo` writes it
-      const orchestrator::SessionReport report =
-          orchestrator::BuildSessionReport(folder, notes, simulation::SimTruthSource());
-      interchange::WriteFileAtomically(folder / "report.html", report.html);
+      (void)report::WriteSessionReport(folder, {/*session_process=*/true, notes},
+                                       simulation::SimTruthSource());
     } catch (const std::exception& e) {
       if (r.ok()) return std::string("report: ") + e.what();
     }
@@ -198,8 +198,8 @@ void RunSweepCommand(const SweepArgs& args) {
   hooks.augment = [](const fs::path& folder, sweep::PointFigures* f) {
     if (!fs::exists(folder / "truth") || !fs::exists(folder / "results")) return;
     try {
-      const orchestrator::SessionReport r =
-          orchestrator::BuildSessionReport(folder, {}, simulation::SimTruthSource());
+      const report::SessionReport r = report::BuildSessionReport(
+          folder, {/*session_process=*/true, {}}, simulation::SimTruthSource());
       if (r.have_planes) f->normal_rms_vs_truth_deg = r.normal_rms_vs_truth_deg;
       if (r.have_hall_vs_truth) {
         f->hall_vs_truth_alpha_deg = r.hall_rms_vs_truth[0];
@@ -214,6 +214,14 @@ void RunSweepCommand(const SweepArgs& args) {
   printer.Break();
   std::printf("\nsweep summary (%s):\n%s", (dir / "summary.csv").string().c_str(),
               outcome.table.c_str());
+  try {  // the sweep's report across its points (each point's own report is already written)
+    (void)report::WriteSweepReport(dir, plan, sweep::ExpandPoints(plan),
+                                   simulation::SimTruthSource(),
+                                   /*write_point_reports=*/false, {/*session_process=*/true, {}});
+    std::printf("sweep report: %s\n", (dir / "report.html").string().c_str());
+  } catch (const std::exception& e) {
+    std::printf("sweep report not written: %s\n", e.what());
+  }
   std::printf("total %.1f s\n", hooks.now_s());
   std::fflush(stdout);
   if (outcome.failed > 0) throw CLI::RuntimeError(1);

@@ -112,6 +112,8 @@ void StripTiming(nlohmann::json& j) {
 nlohmann::json ParseSummary(const std::string& text, const std::string& origin) {
   try {
     nlohmann::json j = nlohmann::json::parse(text);
+    if (j.is_object())
+      for (const char* key : kSummaryRunKeys) j.erase(key);
     StripTiming(j);
     return j;
   } catch (const nlohmann::json::parse_error& e) {

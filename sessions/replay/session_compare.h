@@ -4,7 +4,7 @@
 // image (decoded, pixel for pixel: accepted step1/ step2/ frames and the rejected/ ones), every
 // Hall file (hall/*.csv), and every file under results/ byte for byte — except
 // results/summary.json, compared as JSON with the solve-time keys (kSummaryTimingKeys, at any
-// depth) removed. Logs, journals (session.db), truth/, report.html and Hall recordings cut short
+// depth) and the run's provenance (kSummaryRunKeys) removed. Logs, journals (session.db), truth/, report.html and Hall recordings cut short
 // by an interruption (hall/*.partial-<n>.csv) are not compared.
 
 #include <filesystem>
@@ -15,6 +15,9 @@ namespace msmcal::replay {
 
 // Keys of results/summary.json that measure time (app/cmd_solve.cc), ignored by the comparison.
 inline constexpr const char* kSummaryTimingKeys[] = {"solve_time_s", "ceres_time_s"};
+// Top-level keys of results/summary.json that describe the run, not its results (the report's
+// provenance: command line, host, times, instruments), ignored by the comparison.
+inline constexpr const char* kSummaryRunKeys[] = {"provenance"};
 
 enum class Verdict { kSame, kDiffers, kMissingInOriginal, kMissingInReplay };
 const char* ToString(Verdict verdict);  // "same" | "DIFFERS" | "missing in original" | ...

@@ -17,9 +17,17 @@ namespace msmcal::simulation {
 namespace {
 
 namespace fs = std::filesystem;
-using orchestrator::PlotSeries;
-using orchestrator::SessionReport;
-using orchestrator::SvgPlot;
+using report::Chart;
+using report::ChartSeries;
+using report::SessionReport;
+
+ChartSeries Series(const std::string& name, ChartSeries::Style style, const char* colour) {
+  ChartSeries s;
+  s.name = name;
+  s.style = style;
+  s.colour = colour;
+  return s;
+}
 
 double Rms(const std::vector<double>& v) {
   double s = 0;
@@ -27,12 +35,12 @@ double Rms(const std::vector<double>& v) {
   return v.empty() ? 0 : std::sqrt(s / v.size());
 }
 
-class SimTruthComparison : public orchestrator::TruthComparison {
+class SimTruthComparison : public report::TruthComparison {
  public:
   explicit SimTruthComparison(sim::SimTruth truth) : truth_(std::move(truth)) {}
 
   void CompareMirrorPlanes(const std::vector<dataset::MirrorPlaneRow>& planes,
-                           SessionReport* report, std::vector<std::string>* plots) override {
+                           SessionReport* report, std::vector<Chart>* charts) override {
     std::map<int, dataset::MirrorPlaneRow> by_j;
     for (const auto& r : truth_.mirror_planes) by_j[r.j] = r;
     // Poses are compared in one convention: the truth's {0} rebuilt as the solver builds it
@@ -44,7 +52,7 @@ class SimTruthComparison : public orchestrator::TruthComparison {
         true_scan.push_back(it->second.plane_in_world);
     truth_frame_ = solver::ConventionalTruthFrame(truth_.world_from_mirror0, true_scan);
     std::vector<double> en, ea, eb, et;
-    PlotSeries est{"estimated", {}, {}, false, "#d62728"}, tru{"truth", {}, {}, false, "#2ca02c"};
+    ChartSeries tru = Series("truth", ChartSeries::Style::kPoints, "#2ca02c");
     for (const auto& p : planes) {
       auto it = by_j.find(p.j);
       if (it == by_j.end()) continue;
@@ -57,28 +65,34 @@ class SimTruthComparison : public orchestrator::TruthComparison {
       et.push_back(p.trans_mm - t.trans_mm);
       tru.x.push_back(t.alpha_rad * 180.0 / M_PI);
       tru.y.push_back(t.beta_rad * 180.0 / M_PI);
-      est.x.push_back(p.alpha_deg);
-      est.y.push_back(p.beta_deg);
     }
     report->normal_rms_vs_truth_deg = Rms(en);
     report->alpha_rms_vs_truth_deg = Rms(ea);
     report->beta_rms_vs_truth_deg = Rms(eb);
     report->trans_rms_vs_truth_mm = Rms(et);
-    plots->push_back(
-        SvgPlot("Scan pattern: mirror pose per trigger", "alpha (deg)", "beta (deg)", {tru, est}));
-    PlotSeries dots{"true dot centres (step 2 scan frames)", {}, {}, false, "#1f77b4"};
+    for (auto& c : *charts)
+      if (c.id == "plot-scan-pattern") c.series.push_back(tru);
+    Chart dc;
+    dc.id = "plot-true-dots";
+    dc.title = "Scan pattern of laser dots on the world board (truth)";
+    dc.x_label = "u (px)";
+    dc.y_label = "v (px)";
+    dc.y_reversed = true;
+    ChartSeries dots =
+        Series("true dot centres (step 2 scan frames)", ChartSeries::Style::kPoints, "#1f77b4");
     for (const auto& d : truth_.dots)
       if (d.j >= 0 && d.file.rfind("step2/", 0) == 0)
         dots.x.push_back(d.u_px), dots.y.push_back(d.v_px);
-    plots->push_back(SvgPlot("Scan pattern of laser dots on the world board", "u (px)", "v (px)",
-                             {dots}, /*y_down=*/true));
+    dc.series = {dots};
+    dc.caption = "The simulator's dot centres in the image (truth/dots.csv).";
+    charts->push_back(dc);
   }
 
   double TrueDeltaT() const override { return truth_.hall.delta_t_s; }
   bool HasPoseTrajectory() const override { return !truth_.pose_trajectory.empty(); }
 
   void CompareHallPoses(const std::vector<results::HallPoseRow>& rows, SessionReport* report,
-                        std::vector<std::string>* plots) override {
+                        std::vector<Chart>* charts) override {
     const double period = truth_.hall.pattern_period_s > 0 ? truth_.hall.pattern_period_s
                                                            : truth_.pose_trajectory.back().t_s;
     // The true trajectory in the convention the Hall model was trained in (the solver's {0},
@@ -97,10 +111,10 @@ class SimTruthComparison : public orchestrator::TruthComparison {
     }
     const double dt = tr.size() > 1 ? tr[1].t_s - tr[0].t_s : 1;
     std::vector<double> ea, eb, et;
-    PlotSeries pa{"Hall prediction alpha", {}, {}, false, "#d62728"};
-    PlotSeries ta{"true alpha", {}, {}, true, "#2ca02c"};
-    PlotSeries pb{"Hall prediction beta", {}, {}, false, "#ff7f0e"};
-    PlotSeries tb{"true beta", {}, {}, true, "#1f77b4"};
+    ChartSeries pa = Series("Hall prediction alpha", ChartSeries::Style::kPoints, "#d62728");
+    ChartSeries ta = Series("true alpha", ChartSeries::Style::kLine, "#2ca02c");
+    ChartSeries pb = Series("Hall prediction beta", ChartSeries::Style::kPoints, "#ff7f0e");
+    ChartSeries tb = Series("true beta", ChartSeries::Style::kLine, "#1f77b4");
     for (const auto& p : tr)
       ta.x.push_back(p.t_s), ta.y.push_back(p.alpha_deg), tb.x.push_back(p.t_s),
           tb.y.push_back(p.beta_deg);
@@ -121,8 +135,14 @@ class SimTruthComparison : public orchestrator::TruthComparison {
     report->hall_rms_vs_truth[0] = Rms(ea);
     report->hall_rms_vs_truth[1] = Rms(eb);
     report->hall_rms_vs_truth[2] = Rms(et);
-    plots->push_back(SvgPlot("Hall model fit: predicted vs true pose over one pattern period",
-                             "pattern time (s)", "angle (deg)", {ta, tb, pa, pb}));
+    Chart hc;
+    hc.id = "plot-hall-vs-truth";
+    hc.title = "Hall prediction against the true pose over one pattern period";
+    hc.x_label = "pattern time (s)";
+    hc.y_label = "angle (deg)";
+    hc.series = {ta, tb, pa, pb};
+    hc.caption = "results/hall_poses.csv (every 7th reading) against truth/pose_trajectory.csv.";
+    charts->push_back(hc);
   }
 
  private:
@@ -132,11 +152,11 @@ class SimTruthComparison : public orchestrator::TruthComparison {
 
 }  // namespace
 
-std::unique_ptr<orchestrator::TruthComparison> OpenSimTruth(const fs::path& dir) {
+std::unique_ptr<report::TruthComparison> OpenSimTruth(const fs::path& dir) {
   if (!fs::exists(dir / "truth" / "mirror_planes.csv")) return nullptr;
   return std::make_unique<SimTruthComparison>(sim::ReadTruth(dir));
 }
 
-orchestrator::TruthSource SimTruthSource() { return OpenSimTruth; }
+report::TruthSource SimTruthSource() { return OpenSimTruth; }
 
 }  // namespace msmcal::simulation

@@ -7,15 +7,15 @@
 #include <filesystem>
 #include <memory>
 
-#include "sessions/orchestrator/report.h"
+#include "sessions/report/session_report.h"
 
 namespace msmcal::simulation {
 
 // The truth of `dir`, or null when it has no truth/mirror_planes.csv. Throws std::runtime_error
 // naming the truth file that cannot be parsed.
-std::unique_ptr<orchestrator::TruthComparison> OpenSimTruth(const std::filesystem::path& dir);
+std::unique_ptr<report::TruthComparison> OpenSimTruth(const std::filesystem::path& dir);
 
 // OpenSimTruth as the report's TruthSource.
-orchestrator::TruthSource SimTruthSource();
+report::TruthSource SimTruthSource();
 
 }  // namespace msmcal::simulation

@@ -20,7 +20,7 @@
 #include "processing/solver/pipeline.h"
 #include "sessions/interchange/interchange_io.h"
 #include "sessions/orchestrator/quality_gate.h"
-#include "sessions/orchestrator/report.h"
+#include "sessions/report/session_report.h"
 #include "sessions/results/results_files.h"
 #include "sessions/store/session_store.h"
 #include "simulation/truth/truth_comparison.h"
@@ -83,27 +83,6 @@ TEST(QualityGate, AcceptsRenderedFramesAndSaysWhyItRejects) {
   const GateResult none = CheckFrame(blank, 2, 1, plan.world_board, plan.sliding_board, gate);
   EXPECT_FALSE(none.accepted);
   EXPECT_NE(none.reason.find("world board"), std::string::npos) << none.reason;
-}
-
-TEST(Report, SvgPlotDrawsEveryPointAndTheHistogramCountsAll) {
-  PlotSeries s{"pts", {0, 1, 2}, {5, 6, 7}, false, "#000"};
-  const std::string svg = SvgPlot("t", "x", "y", {s});
-  size_t circles = 0;
-  for (size_t p = svg.find("<circle"); p != std::string::npos; p = svg.find("<circle", p + 1))
-    ++circles;
-  EXPECT_EQ(circles, 3u);
-  EXPECT_EQ(svg.rfind("</svg>"), svg.size() - 6);
-  EXPECT_NE(SvgHistogram("h", "x", {1, 2, 2, 3}, 2).find("<polyline"), std::string::npos);
-}
-
-TEST(Report, SaysWhatIsMissingInsteadOfInventingFigures) {
-  const fs::path dir = FreshDir("empty_report");
-  fs::create_directories(dir);
-  const SessionReport r = BuildSessionReport(dir, {}, simulation::SimTruthSource());
-  EXPECT_FALSE(r.have_planes);
-  EXPECT_FALSE(r.have_hall);
-  EXPECT_EQ(r.skipped.size(), 3u);  // truth, Table I, Table II
-  EXPECT_NE(r.text.find("SKIPPED: Table I figures"), std::string::npos) << r.text;
 }
 
 TEST(Orchestrator, RunsACompleteSessionThroughTheMocksAndTheSolverRecoversTruth) {
@@ -211,7 +190,8 @@ TEST(Orchestrator, RunsACompleteSessionThroughTheMocksAndTheSolverRecoversTruth)
   results::WriteMirrorPlanesCsv(dir / "results" / "mirror_planes.csv", out.planes);
   results::WriteMirrorPosesSummary(dir / "results" / "summary.json",
                                    results::SummariseSolve(out, /*solve_time_s=*/1.0));
-  const SessionReport report = BuildSessionReport(dir, progress, simulation::SimTruthSource());
+  const report::SessionReport report = report::BuildSessionReport(
+      dir, {/*session_process=*/true, progress}, simulation::SimTruthSource());
   EXPECT_TRUE(report.have_planes);
   EXPECT_EQ(report.planes, static_cast<int>(out.planes.size()));
   EXPECT_NEAR(report.normal_rms_vs_truth_deg, rms_deg, 1e-9);
@@ -219,7 +199,8 @@ TEST(Orchestrator, RunsACompleteSessionThroughTheMocksAndTheSolverRecoversTruth)
   EXPECT_FALSE(report.have_hall);
   ASSERT_FALSE(report.skipped.empty());
   EXPECT_NE(report.text.find("SKIPPED: Table II"), std::string::npos) << report.text;
-  EXPECT_NE(report.html.find("<svg"), std::string::npos);
+  EXPECT_NE(report.html.find("<canvas id=\"plot-scan-pattern\""), std::string::npos);
+  EXPECT_NE(report.html.find("id=\"verdict\""), std::string::npos);
   const std::string log = ReadText(dir / "session_log.txt");
   EXPECT_NE(log.find("rig check passed"), std::string::npos);
   EXPECT_NE(log.find("safe state: generator outputs off (confirmed)"), std::string::npos);
@@ -231,8 +212,11 @@ TEST(Orchestrator, RunsACompleteSessionThroughTheMocksAndTheSolverRecoversTruth)
     EXPECT_EQ(journal->GetMeta("hall.background.readings_dropped"), "0");
     EXPECT_EQ(journal->GetMeta("hall.actual.readings_dropped"), "0");
   }
-  EXPECT_NE(report.text.find("Hall readings dropped (recorder queue full): background 0, actual 0"),
+  EXPECT_NE(report.text.find("[pass] Hall readings lost or dropped: 0 lost on the link, 0 dropped "
+                             "by the recorder"),
             std::string::npos)
+      << report.text;
+  EXPECT_NE(report.text.find("(recorder queue full: background 0, actual 0)"), std::string::npos)
       << report.text;
 }
 

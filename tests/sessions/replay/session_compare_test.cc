@@ -130,6 +130,13 @@ TEST(SessionCompare, SummaryTimingKeysAreIgnoredOtherKeysAreNot) {
                     "validation_rms_deg":0.0031}})",
                 "b"));
   EXPECT_THROW(SummaryJsonWithoutTiming("{not json", "x.json"), std::runtime_error);
+
+  // The report's provenance (command line, host, times) describes the run, not its results.
+  Write(f.b / "results" / "summary.json",
+        R"({"mirror_poses": {"validation_rms_deg": 0.0031, "ceres_iterations": 12},
+            "hall": {"delta_t_s": 0.00012},
+            "provenance": {"command_line": "msmcal replay x", "host": "h"}})");
+  EXPECT_TRUE(CompareSessions(f.a, f.b).identical());
 }
 
 TEST(SessionCompare, ImagesAreComparedByPixelsNotByEncoding) {
