@@ -19,7 +19,7 @@ grep -q "^expected duration: about " "$dir/plan.out"
 grep -q "^disk needed: about " "$dir/plan.out"
 test -f "$dir/plan/session.yaml" && test -f "$dir/plan/camera.yaml"
 # A second plan into the same folder needs --force.
-if "$msmcal" plan --rig "$src/config/rig.yaml" --out "$dir/plan" > /dev/null 2> "$dir/err"; then
+if "$msmcal" plan --rig "$src/config/rig.yaml" --out "$dir/plan" > "$dir/err" 2>&1; then
   echo "expected a refusal to overwrite the plan"; exit 1
 fi
 grep -q "holds a plan already (--force replaces it)" "$dir/err"
@@ -49,7 +49,7 @@ cp "$dir/plan/camera.yaml" "$dir/bad/"
 sed 's/fast: {frequency_hz: 205,/fast: {frequency_hz: 260,/' "$dir/plan/session.yaml" \
   > "$dir/bad/session.yaml"
 if "$msmcal" session run --rig "$src/config/rig.yaml" --plan "$dir/bad" --out "$dir/new/s2" \
-    --dry-run > /dev/null 2> "$dir/err"; then
+    --dry-run > "$dir/err" 2>&1; then
   echo "expected the dry run to refuse a drive outside the window"; exit 1
 fi
 cat "$dir/err"
@@ -58,7 +58,7 @@ test ! -e "$dir/new"
 
 # A rig whose trigger design is over the duty limit: `msmcal plan` refuses, writes nothing.
 sed 's/pulse_width_s: 1.0e-6/pulse_width_s: 1.0e-4/' "$src/config/rig.yaml" > "$dir/duty.yaml"
-if "$msmcal" plan --rig "$dir/duty.yaml" --out "$dir/plan2" > /dev/null 2> "$dir/err"; then
+if "$msmcal" plan --rig "$dir/duty.yaml" --out "$dir/plan2" > "$dir/err" 2>&1; then
   echo "expected plan to refuse the duty"; exit 1
 fi
 cat "$dir/err"
@@ -67,7 +67,7 @@ test ! -e "$dir/plan2"
 
 # An operator spec that is neither console nor hook:CMD.
 if "$msmcal" session run --rig "$src/config/rig.yaml" --plan "$dir/plan" --out "$dir/new/s3" \
-    --operator robot --dry-run > /dev/null 2> "$dir/err"; then
+    --operator robot --dry-run > "$dir/err" 2>&1; then
   echo "expected a refusal of --operator robot"; exit 1
 fi
 grep -q "\-\-operator = 'robot': must be console or hook:CMD" "$dir/err"
