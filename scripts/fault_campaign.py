@@ -290,9 +290,13 @@ def shown_error(text, rc):
     """The line a person at the terminal reads as the reason (the last error, else warning)."""
     lines = text.splitlines()
     for pat in (r"\[error\]", r"(?i)error|FAILED|PROBLEM", r"(?i)warning"):
-        hits = [l for l in lines if re.search(pat, l)]
+        hits = [i for i, l in enumerate(lines) if re.search(pat, l)]
         if hits:
-            return re.sub(r"^\[[^\]]*\] (\[[a-z]+\] )?", "", hits[-1]).strip()
+            i = hits[-1]
+            shown = re.sub(r"^\[[^\]]*\] (\[[a-z]+\] )?", "", lines[i]).strip()
+            if shown.endswith(":") and i + 1 < len(lines):  # a list follows: its first item
+                shown += " " + lines[i + 1].strip()
+            return shown
     return ""
 
 

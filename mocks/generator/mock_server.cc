@@ -218,9 +218,10 @@ struct MockGeneratorServer::Impl {
   std::vector<std::pair<std::weak_ptr<Session>, std::string>> held;
   std::atomic<uint64_t> accepted{0};
   bool running = false;
-  // SecondConnection (io thread only): served connections open, and those waiting their turn.
+  // SecondConnection (io thread only): served connections open, and those waiting their turn
+  // (owned here: no read is outstanding on them to keep them alive).
   int served_open = 0;
-  std::deque<std::weak_ptr<Session>> waiting;
+  std::deque<std::shared_ptr<Session>> waiting;
 
   Impl(Mock33520B& u, int port, ServerLimits l) : unit(u), requested_port(port), limits(l) {}
 
@@ -292,9 +293,9 @@ struct MockGeneratorServer::Impl {
     session.served = false;
     --served_open;
     while (served_open == 0 && !waiting.empty()) {
-      std::shared_ptr<Session> next = waiting.front().lock();
+      std::shared_ptr<Session> next = std::move(waiting.front());
       waiting.pop_front();
-      if (next && !next->closed) Serve(*next);
+      if (!next->closed) Serve(*next);
     }
   }
 };
@@ -402,6 +403,7 @@ void MockGeneratorServer::Stop() {
   asio::post(s.io, [&s] {
     boost::system::error_code ignored;
     s.acceptor.close(ignored);
+    auto waiting = std::move(s.waiting);  // not served again by OnClosed below
     for (auto& w : s.sessions) {
       if (auto p = w.lock()) p->Close();
     }
