@@ -289,6 +289,11 @@ def hashes(dir_, files):
 def shown_error(text, rc):
     """The line a person at the terminal reads as the reason (the last error, else warning)."""
     lines = text.splitlines()
+    # The acquisition's part: the finish steps after it (solve, Hall calibration) print tables.
+    for i, l in enumerate(lines):
+        if l.startswith("$ msmcal ") or "acquisition done:" in l:
+            lines = lines[:i]
+            break
     for pat in (r"\[error\]", r"(?i)error|FAILED|PROBLEM", r"(?i)warning"):
         hits = [i for i, l in enumerate(lines) if re.search(pat, l)]
         if hits:
@@ -390,7 +395,9 @@ def run_row(fault, msmcal, work):
             shown = re.sub(r"^\[watchdog [^\]]*\] ", "watchdog: ", shown)
     else:
         shown = shown_error(text, rc)
-    row["error"] = "%s; %s" % (row["exit"], shown) if shown else row["exit"]
+        if not shown and fault.point == "rig check" and rc < 0:
+            shown = "ended by the signal before the guard is installed (outputs never on)"
+    row["error"] = "%s; %s" % (row["exit"], shown or "no error")
     if fault.expect == "complete":
         check(rc == 0, "the session did not complete (%s)" % row["exit"])
     else:
@@ -402,6 +409,10 @@ def run_row(fault, msmcal, work):
               "the output does not say /%s/" % fault.error)
     if fault.signal and fault.signal != "KILL" and fault.point != "rig check":
         check("interrupted (signal)" in text + log_text, "no 'interrupted (signal)' line")
+    if fault.signal != "KILL":
+        # Off by msmcal itself: not left on until the watchdog fired at its exit.
+        check("outputs off NOT confirmed" not in log_text and "[watchdog" not in log_text,
+              "msmcal's own safe state was not confirmed (the watchdog switched the outputs off)")
     if fault.point and j is not None:
         state = j["steps"].get(POINT_STEP[fault.point])
         check(state in ("running", "failed"),
