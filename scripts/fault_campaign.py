@@ -395,6 +395,10 @@ def run_row(fault, msmcal, work):
             shown = re.sub(r"^\[watchdog [^\]]*\] ", "watchdog: ", shown)
     else:
         shown = shown_error(text, rc)
+        if rc == 0 and fault.error:  # ridden out: the line that says how
+            hits = [l for l in text.splitlines() if re.search(fault.error, l)]
+            if hits:
+                shown = re.sub(r"^\[[^\]]*\] ", "", hits[0]).strip()
         if not shown and fault.point == "rig check" and rc < 0:
             shown = "ended by the signal before the guard is installed (outputs never on)"
     row["error"] = "%s; %s" % (row["exit"], shown or "no error")
