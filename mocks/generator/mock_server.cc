@@ -58,9 +58,7 @@ struct MockGeneratorServer::Impl {
     }
 
     // A held reply stalls the connection as a slow instrument does: later messages wait for it.
-    bool Blocked() const {
-      return delaying || pending > server->limits.max_pending_reply_bytes;
-    }
+    bool Blocked() const { return delaying || pending > server->limits.max_pending_reply_bytes; }
 
     // Reads unless the unsent replies are over the cap (back-pressure: the client's sends
     // block in TCP until it reads its replies).
@@ -366,7 +364,8 @@ SecondConnection ParseSecondConnection(const std::string& text) {
   if (text == "serve") return SecondConnection::kServe;
   if (text == "queue") return SecondConnection::kQueue;
   if (text == "close") return SecondConnection::kClose;
-  throw std::invalid_argument("'" + text + "': a second connection is served with serve, queue "
+  throw std::invalid_argument("'" + text +
+                              "': a second connection is served with serve, queue "
                               "or close");
 }
 

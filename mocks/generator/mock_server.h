@@ -72,14 +72,14 @@ struct ServerLimits {
 // Counters for tests (all connections since Start()).
 struct ServerStats {
   uint64_t connections = 0;
-  uint64_t messages = 0;                // program messages handed to the unit
-  uint64_t read_pauses = 0;             // times a connection was flow-controlled
-  uint64_t input_overruns = 0;          // messages discarded for length
-  uint64_t faults_applied = 0;          // injected faults that took effect
-  uint64_t connections_closed = 0;      // by either side
+  uint64_t messages = 0;                 // program messages handed to the unit
+  uint64_t read_pauses = 0;              // times a connection was flow-controlled
+  uint64_t input_overruns = 0;           // messages discarded for length
+  uint64_t faults_applied = 0;           // injected faults that took effect
+  uint64_t connections_closed = 0;       // by either side
   uint64_t connections_turned_away = 0;  // SecondConnection::kClose
-  size_t pending_reply_high_water = 0;  // most unsent reply bytes one connection held
-  size_t input_high_water = 0;          // most received, unprocessed bytes one connection held
+  size_t pending_reply_high_water = 0;   // most unsent reply bytes one connection held
+  size_t input_high_water = 0;           // most received, unprocessed bytes one connection held
 };
 
 class MockGeneratorServer {
@@ -110,8 +110,8 @@ class MockGeneratorServer {
 };
 
 struct GeneratorPairOptions {
-  int port1 = 0;                // unit 1: fast/slow sine drives; master of reference and trigger
-  int port2 = 0;                // unit 2: laser trigger arb and clock; slave
+  int port1 = 0;  // unit 1: fast/slow sine drives; master of reference and trigger
+  int port2 = 0;  // unit 2: laser trigger arb and clock; slave
   ServerLimits limits1, limits2;
   bool reference_wired = true;  // unit 1's 10 MHz out -> unit 2's reference in
   bool trigger_wired = true;    // unit 1's trigger out -> unit 2's Ext Trig in

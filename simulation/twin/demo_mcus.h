@@ -4,7 +4,6 @@
 
 #include <memory>
 #include <string>
-
 #include <vector>
 
 #include "mocks/rig/sim_options.h"

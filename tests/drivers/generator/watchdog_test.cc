@@ -29,7 +29,6 @@
 #include "test_rig.h"
 #include "tests/testing/child_process.h"
 
-
 namespace msmcal::gen {
 namespace {
 
@@ -250,8 +249,8 @@ TEST_P(WatchdogOneConnectionTest, SigkillTurnsEveryOutputOffWithinTwoSeconds) {
   }
   const std::string log = ReadFile(log_);
   for (int u = 1; u <= 2; ++u) {
-    EXPECT_NE(log.find("unit" + std::to_string(u) + " (127.0.0.1:" +
-                       std::to_string(pair.port(u)) + ") outputs off, confirmed"),
+    EXPECT_NE(log.find("unit" + std::to_string(u) + " (127.0.0.1:" + std::to_string(pair.port(u)) +
+                       ") outputs off, confirmed"),
               std::string::npos)
         << log;
   }
@@ -266,9 +265,8 @@ INSTANTIATE_TEST_SUITE_P(SecondConnection, WatchdogOneConnectionTest,
                          ::testing::Values(sim::SecondConnection::kQueue,
                                            sim::SecondConnection::kClose),
                          [](const ::testing::TestParamInfo<sim::SecondConnection>& i) {
-                           return std::string(i.param == sim::SecondConnection::kQueue
-                                                  ? "Queued"
-                                                  : "Closed");
+                           return std::string(i.param == sim::SecondConnection::kQueue ? "Queued"
+                                                                                       : "Closed");
                          });
 
 TEST(WatchdogSwitchOff, GivesUpOnAnUnreachableUnitWithinTheRetryWindowAndSaysWhy) {
