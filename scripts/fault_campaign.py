@@ -179,6 +179,9 @@ def wait_pid(pid, deadline_s):
         os.close(fd)
 
 
+CHILDREN = []  # processes a row started (ended by the row runner if it fails)
+
+
 class Session:
     """A running msmcal process whose stdout lines are collected and can be waited for."""
 
@@ -187,6 +190,7 @@ class Session:
         self.proc = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
                                      stdin=subprocess.DEVNULL, text=True, errors="replace",
                                      start_new_session=True)
+        CHILDREN.append(self.proc)
         self.lines = []
         self.cv = threading.Condition()
         self.done = False
@@ -363,6 +367,7 @@ def run_row(fault, msmcal, work):
     for g in fault.gen:
         gen_argv += ["--fault", g]
     gens = subprocess.Popen(gen_argv, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    CHILDREN.append(gens)
     listening = 0
     for line in gens.stdout:
         gen_log.write(line)
@@ -380,7 +385,7 @@ def run_row(fault, msmcal, work):
     if fault.point:
         landed = s.wait_line(POINTS[fault.point], POINT_DEADLINE_S)
         check(landed, "the session never reached " + fault.point)
-    if landed:
+    if landed and fault.point:
         landed = wait_step_running(out, POINT_STEP[fault.point], s)
         check(landed, "the journal never showed step %s running" % POINT_STEP[fault.point])
     if landed and fault.disk:
@@ -547,7 +552,15 @@ def main():
     table = {f.name: f for f in faults()}
 
     if args.run_row:
-        row = run_row(table[args.run_row], args.msmcal, args.work)
+        try:
+            row = run_row(table[args.run_row], args.msmcal, args.work)
+        finally:
+            # Nothing of the row outlives it, whatever went wrong (the processes are ours: this
+            # runner started them, and is the subreaper of what they started).
+            for p in list(CHILDREN):
+                if p.poll() is None:
+                    p.kill()
+                    p.wait()
         print(json.dumps(row), flush=True)
         return 0
     if args.list:
