@@ -453,7 +453,7 @@ def run_row(fault, msmcal, work):
     if fault.error:
         check(re.search(fault.error, text + "\n" + log_text) is not None,
               "the output does not say /%s/" % fault.error)
-    if fault.signal and fault.signal != "KILL" and fault.point != "rig check":
+    if fault.expect == "signal" and fault.signal != "KILL" and fault.point != "rig check":
         check("interrupted (signal)" in text + log_text, "no 'interrupted (signal)' line")
     if fault.signal != "KILL":
         # Off by msmcal itself: not left on until the watchdog fired at its exit.
