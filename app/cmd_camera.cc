@@ -177,6 +177,7 @@ struct MockArgs {
   int sensor_width = 3840;
   int sensor_height = 2748;
   double frame_rate_hz = 10;
+  std::string fault;  // lost@N
 };
 
 void RunMockCamera(const MockArgs& args) {
@@ -210,6 +211,17 @@ void RunMockCamera(const MockArgs& args) {
   options.sensor_width = sensor_width;
   options.sensor_height = sensor_height;
   options.frame_rate_hz = args.frame_rate_hz;
+  if (!args.fault.empty()) {
+    size_t used = 0;
+    try {
+      if (args.fault.rfind("lost@", 0) == 0)
+        options.lost_after_frames = std::stoll(args.fault.substr(5), &used);
+    } catch (const std::exception&) {
+      used = 0;
+    }
+    if (used == 0 || used != args.fault.size() - 5 || options.lost_after_frames < 0)
+      throw std::runtime_error("--fault '" + args.fault + "': expected lost@N, N >= 0");
+  }
   std::string error;
   auto server = msmcal::sim::MockGvCamera::Start(options, source, &error);
   if (!server) throw std::runtime_error(error);
@@ -263,6 +275,9 @@ void AddCameraCommands(CLI::App& app) {
   mock_camera->add_option("--sensor-width", mock_args->sensor_width, "Sensor width, pixels");
   mock_camera->add_option("--sensor-height", mock_args->sensor_height, "Sensor height, pixels");
   mock_camera->add_option("--frame-rate", mock_args->frame_rate_hz, "Initial frame rate, Hz");
+  mock_camera->add_option("--fault", mock_args->fault,
+                          "lost@N: stop serving after N frames, as an unplugged camera "
+                          "(off by default; docs/fault-campaign.md)");
   mock_camera->callback([mock_args] { RunMockCamera(*mock_args); });
 }
 

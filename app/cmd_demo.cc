@@ -41,6 +41,8 @@ struct DemoArgs {
   std::string camera_address = "127.0.0.1";
   std::string store;  // session store folder to import the finished session into (optional)
   bool guided = false;
+  std::vector<int> generator_ports;     // --generator-ports P1,P2 (docs/fault-campaign.md)
+  std::vector<std::string> mock_faults;  // --mock-fault
 };
 
 // --guided: a ConsoleOperator on stdin/stdout in front of the simulated world (with the
@@ -55,6 +57,11 @@ void RunDemo(const DemoArgs& args) {
   acq.sim = args.config.empty() ? sim::SimOptions{} : sim::LoadSimOptions(args.config);
   if (args.seed >= 0) acq.sim.seed = static_cast<uint64_t>(args.seed);
   acq.camera_address = args.camera_address;
+  if (args.generator_ports.size() == 2) {
+    acq.external_generator_port1 = args.generator_ports[0];
+    acq.external_generator_port2 = args.generator_ports[1];
+  }
+  acq.mock_faults = args.mock_faults;
   const fs::path out = fs::absolute(args.out);
   if (fs::exists(out) && !fs::is_empty(out))
     throw std::runtime_error(out.string() +
@@ -115,6 +122,16 @@ void AddDemoCommands(CLI::App& app) {
   demo->add_option("--store", args->store,
                    "Also import the finished session (with results/) into this new session-store "
                    "folder");
+  demo->add_option("--generator-ports", args->generator_ports,
+                   "Use generators served by another process on 127.0.0.1:P1 (unit 1) and P2 "
+                   "(unit 2), e.g. `msmcal mock generators`, instead of the demo rig's own")
+      ->delimiter(',')
+      ->expected(2)
+      ->check(CLI::Range(1, 65535));
+  demo->add_option("--mock-fault", args->mock_faults,
+                   "Inject a fault into the demo rig's own mocks (repeatable): camera:lost@N, "
+                   "mcu-background:SPEC, mcu-actual:SPEC with SPEC flip@N|drop@N|reset@N|"
+                   "stall@N[:ms] (docs/fault-campaign.md)");
   demo->add_flag("--guided", args->guided,
                  "Prompt for every rig set-up on this terminal (Enter / r / q), print live gate "
                  "figures and write annotated previews to DIR/previews");

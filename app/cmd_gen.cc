@@ -4,7 +4,9 @@
 //                    [--watchdog-log FILE]
 //   msmcal gen off --rig CONFIG
 //   msmcal mock generators --rig CONFIG [--unlocked] [--no-trigger-cable]
-//   msmcal mock generator --port P [--idn TEXT]
+//                          [--fault unitN:SPEC]... [--second-connection serve|queue|close]
+//   msmcal mock generator --port P [--idn TEXT] [--fault SPEC]... [--second-connection MODE]
+// Faults and the second-connection modes: mocks/generator/mock_server.h, docs/fault-campaign.md.
 #include <signal.h>
 
 #include <CLI/CLI.hpp>
@@ -14,6 +16,8 @@
 #include <memory>
 #include <stdexcept>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "app/command_registry.h"
 #include "drivers/generator/rig_generators.h"
@@ -183,7 +187,17 @@ struct MockArgs {
   bool no_trigger_cable = false;
   int port = 0;
   std::string idn;
+  std::vector<std::string> faults;
+  std::string second_connection = "serve";
 };
+
+// Prints what a mock unit saw, on stop: the fault campaign reads it (docs/fault-campaign.md).
+void PrintServerSummary(const std::string& name, const msmcal::sim::MockGeneratorServer& server) {
+  const msmcal::sim::ServerStats st = server.Stats();
+  std::cout << name << ": " << st.connections << " connection(s), " << st.messages
+            << " message(s), " << st.faults_applied << " fault(s) applied, "
+            << st.connections_turned_away << " connection(s) turned away" << std::endl;
+}
 
 void ServeGenerators(const MockArgs& args) {
   const RigGeneratorConfig config = msmcal::gen::LoadRigGeneratorConfig(args.rig);
@@ -199,11 +213,23 @@ void ServeGenerators(const MockArgs& args) {
   o.port2 = config.unit2.link.port;
   o.reference_wired = !args.unlocked;
   o.trigger_wired = !args.no_trigger_cable;
+  o.limits1.second_connection = o.limits2.second_connection =
+      msmcal::sim::ParseSecondConnection(args.second_connection);
+  std::vector<std::pair<int, msmcal::sim::Fault>> faults;
+  for (const std::string& f : args.faults) {
+    const bool unit1 = f.rfind("unit1:", 0) == 0, unit2 = f.rfind("unit2:", 0) == 0;
+    if (!unit1 && !unit2)
+      throw std::invalid_argument("--fault '" + f + "': name the unit: unit1:SPEC or unit2:SPEC");
+    faults.emplace_back(unit1 ? 1 : 2, msmcal::sim::ParseFault(f.substr(6)));
+  }
   msmcal::sim::MockGeneratorPair pair(o);
+  for (const auto& [unit, fault] : faults) pair.server(unit).InjectFault(fault);
   std::cout << "listening on 127.0.0.1:" << pair.port(1) << " (" << config.unit1.name << ")\n"
             << "listening on 127.0.0.1:" << pair.port(2) << " (" << config.unit2.name << ")"
             << std::endl;
   stop.Wait();
+  PrintServerSummary(config.unit1.name, pair.server(1));
+  PrintServerSummary(config.unit2.name, pair.server(2));
 }
 
 void ServeGenerator(const MockArgs& args) {
@@ -211,10 +237,14 @@ void ServeGenerator(const MockArgs& args) {
   msmcal::sim::UnitOptions u;
   if (!args.idn.empty()) u.identity = args.idn;
   msmcal::sim::Mock33520B unit(u, nullptr);
-  msmcal::sim::MockGeneratorServer server(unit, args.port);
+  msmcal::sim::ServerLimits limits;
+  limits.second_connection = msmcal::sim::ParseSecondConnection(args.second_connection);
+  msmcal::sim::MockGeneratorServer server(unit, args.port, limits);
+  for (const std::string& f : args.faults) server.InjectFault(msmcal::sim::ParseFault(f));
   server.Start();
   std::cout << "listening on 127.0.0.1:" << server.port() << std::endl;
   stop.Wait();
+  PrintServerSummary("generator", server);
 }
 
 void AddMockGeneratorCommands(CLI::App& app) {
@@ -229,6 +259,17 @@ void AddMockGeneratorCommands(CLI::App& app) {
       ->check(CLI::ExistingFile);
   pair->add_flag("--unlocked", args->unlocked, "Leave the 10 MHz reference cable unplugged");
   pair->add_flag("--no-trigger-cable", args->no_trigger_cable, "Leave the trigger cable unplugged");
+  auto add_fault_options = [&](CLI::App* cmd, const char* fault_help) {
+    cmd->add_option("--fault", args->faults, fault_help);
+    cmd->add_option("--second-connection", args->second_connection,
+                    "A second SCPI connection while one is open: serve (default), queue (accept, "
+                    "serve once the first closes) or close (accept and close it)")
+        ->check(CLI::IsMember({"serve", "queue", "close"}));
+  };
+  add_fault_options(pair,
+                    "Inject a fault (repeatable; off by default): unitN:KIND[,after=N]"
+                    "[,match=TEXT][,ms=MS], KIND drop|freeze|delay|garbage|drop-mid-reply "
+                    "(docs/fault-campaign.md)");
   pair->callback([args] { ServeGenerators(*args); });
 
   auto* one = mock->add_subcommand("generator",
@@ -237,6 +278,9 @@ void AddMockGeneratorCommands(CLI::App& app) {
       ->required()
       ->check(CLI::Range(0, 65535));
   one->add_option("--idn", args->idn, "*IDN? reply");
+  add_fault_options(one,
+                    "Inject a fault (repeatable; off by default): KIND[,after=N][,match=TEXT]"
+                    "[,ms=MS], KIND drop|freeze|delay|garbage|drop-mid-reply");
   one->callback([args] { ServeGenerator(*args); });
 }
 

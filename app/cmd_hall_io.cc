@@ -29,39 +29,6 @@ namespace {
 
 namespace fs = std::filesystem;
 
-// "flip@1200", "drop@300", "reset@5000", "stall@9000" or "stall@9000:2000" (ms).
-sim::McuFault ParseFault(const std::string& text) {
-  const size_t at = text.find('@');
-  if (at == std::string::npos) {
-    throw std::runtime_error("--fault '" + text + "': expected KIND@FRAME, e.g. flip@1200");
-  }
-  const std::string kind = text.substr(0, at);
-  sim::McuFault fault;
-  if (kind == "flip") {
-    fault.kind = sim::McuFaultKind::kFlipBit;
-  } else if (kind == "drop") {
-    fault.kind = sim::McuFaultKind::kDropByte;
-  } else if (kind == "reset") {
-    fault.kind = sim::McuFaultKind::kReset;
-  } else if (kind == "stall") {
-    fault.kind = sim::McuFaultKind::kStall;
-  } else {
-    throw std::runtime_error("--fault '" + text + "': kind must be flip|drop|reset|stall");
-  }
-  std::string rest = text.substr(at + 1);
-  try {
-    const size_t colon = rest.find(':');
-    if (colon != std::string::npos) {
-      fault.stall_ms = std::stoll(rest.substr(colon + 1));
-      rest = rest.substr(0, colon);
-    }
-    fault.data_frame = std::stoull(rest);
-  } catch (const std::exception&) {
-    throw std::runtime_error("--fault '" + text + "': FRAME must be a non-negative integer");
-  }
-  return fault;
-}
-
 struct MockArgs {
   std::string link;
   std::string mode = "scan";
@@ -106,7 +73,7 @@ void RunMockMcu(const MockArgs& args) {
   if (args.mode == "marg" && args.replay.empty()) {
     options.identify.sensor_type = hall_mcu::SensorType::kMarg;
   }
-  for (const std::string& f : args.faults) options.faults.push_back(ParseFault(f));
+  for (const std::string& f : args.faults) options.faults.push_back(sim::ParseMcuFault(f));
 
   // Block the stop signals before any thread starts, then wait for one of them here.
   sigset_t stop_signals;

@@ -14,6 +14,7 @@
 #include "common/text_io.h"
 #include "drivers/generator/rig_config.h"
 #include "drivers/hall_mcu/hall_mcu_config.h"
+#include "mocks/mcu/mock_mcu.h"
 #include "mocks/rig/truth_io.h"
 #include "sessions/interchange/interchange_io.h"
 #include "sessions/orchestrator/console_operator.h"
@@ -44,6 +45,30 @@ orchestrator::FrameObserver GuidedObserver(const fs::path& out, const dataset::B
     live(r);
     previews(r);
   };
+}
+
+// One --mock-fault of `msmcal demo` into the rig options (DemoAcquisitionOptions::mock_faults).
+void AddMockFault(const std::string& text, twin::DemoRigOptions& ro) {
+  const size_t colon = text.find(':');
+  const std::string mock = text.substr(0, colon);
+  const std::string spec = colon == std::string::npos ? std::string() : text.substr(colon + 1);
+  if (mock == "camera" && spec.rfind("lost@", 0) == 0) {
+    try {
+      size_t used = 0;
+      ro.camera_lost_after_frames = std::stoll(spec.substr(5), &used);
+      if (used == spec.size() - 5 && ro.camera_lost_after_frames >= 0) return;
+    } catch (const std::exception&) {
+    }
+    throw std::runtime_error("--mock-fault '" + text + "': expected camera:lost@N, N >= 0");
+  }
+  if (mock == "mcu-background") {
+    ro.background_mcu_faults.push_back(sim::ParseMcuFault(spec));
+  } else if (mock == "mcu-actual") {
+    ro.actual_mcu_faults.push_back(sim::ParseMcuFault(spec));
+  } else {
+    throw std::runtime_error("--mock-fault '" + text +
+                             "': expected camera:lost@N, mcu-background:SPEC or mcu-actual:SPEC");
+  }
 }
 
 }  // namespace
@@ -80,6 +105,9 @@ orchestrator::SessionResult RunDemoAcquisition(const fs::path& out,
   ro.sim = options.sim;
   ro.camera_address = options.camera_address;
   ro.camera_frame_rate_hz = options.camera_frame_rate_hz;
+  ro.external_generator_port1 = options.external_generator_port1;
+  ro.external_generator_port2 = options.external_generator_port2;
+  for (const std::string& f : options.mock_faults) AddMockFault(f, ro);
   twin::DemoRig rig(ro);
   if (options.progress) {
     for (const auto& w : rig.sim().warnings()) options.progress("simulator warning: " + w);

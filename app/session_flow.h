@@ -38,6 +38,14 @@ struct DemoAcquisitionOptions {
   std::function<void(orchestrator::OrchestratorOptions&)> adjust_options;
   orchestrator::ProgressFn progress;
   std::string note = "msmcal demo";
+  // `msmcal demo --generator-ports P1,P2`: the generators are served by another process on
+  // 127.0.0.1 (e.g. `msmcal mock generators --fault ...`); 0, 0: the demo rig serves its own.
+  int external_generator_port1 = 0, external_generator_port2 = 0;
+  // `msmcal demo --mock-fault`: faults of the demo rig's own mocks, docs/fault-campaign.md:
+  // "camera:lost@N" (the camera is unplugged after N frames), "mcu-background:SPEC",
+  // "mcu-actual:SPEC" (SPEC as `msmcal mock mcu --fault`: flip@N, drop@N, reset@N, stall@N[:ms]).
+  // Not journalled: a resumed session meets no fault.
+  std::vector<std::string> mock_faults;
 };
 
 // Guided demo: a ConsoleOperator on stdin/stdout in front of the simulated world (pose hints from

@@ -302,15 +302,23 @@ class Keysight33500 final : public FunctionGenerator {
     Check("PHAS:SYNC");
   }
 
+  // On the open connection, then once more on a new one: an instrument that dropped the
+  // connection under the OUTP OFF (or a connection left with a stale reply) must not leave the
+  // outputs on until the watchdog fires (the fault campaign's scpi-drop-safe-state).
   bool SafeState() noexcept override {
-    try {
-      if (!client_.IsConnected()) client_.Connect();
-      client_.Write("OUTP1 OFF;:OUTP2 OFF");
-      const std::string r = client_.Query("OUTP1?;:OUTP2?");
-      return r == "0;0";
-    } catch (...) {
-      return false;
+    for (int attempt = 0; attempt < 2; ++attempt) {
+      try {
+        if (attempt > 0) {
+          client_.Reconnect();
+        } else if (!client_.IsConnected()) {
+          client_.Connect();
+        }
+        client_.Write("OUTP1 OFF;:OUTP2 OFF");
+        if (client_.Query("OUTP1?;:OUTP2?") == "0;0") return true;
+      } catch (...) {
+      }
     }
+    return false;
   }
 
  private:

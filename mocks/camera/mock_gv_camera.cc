@@ -4,14 +4,17 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <condition_variable>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <mutex>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <optional>
 #include <sstream>
 #include <stdexcept>
+#include <thread>
 
 #include "mocks/camera/place_image.h"
 
@@ -45,6 +48,9 @@ std::string MockGvCameraOptions::Validate() const {
         << ": must be in [0, sensor size] (0 = sensor size)";
   } else if (!(frame_rate_hz >= 0.1 && frame_rate_hz <= 1000)) {
     out << "MockGvCameraOptions.frame_rate_hz = " << frame_rate_hz << ": must be in [0.1, 1000]";
+  } else if (lost_after_frames < -1) {
+    out << "MockGvCameraOptions.lost_after_frames = " << lost_after_frames
+        << ": must be >= 0 (-1: no fault)";
   }
   return out.str();
 }
@@ -53,6 +59,21 @@ struct MockGvCamera::Impl {
   ArvGvFakeCamera* server = nullptr;
   ArvFakeCamera* fake = nullptr;  // owned by server
   std::string xml_path;
+  // The lost_after_frames fault: the fill callback (on the server's thread, which unref joins)
+  // signals `loser`, which stops the server.
+  std::mutex mu;
+  std::condition_variable cv;
+  bool lose = false, closing = false;
+  std::thread loser;
+
+  void StopServer() {
+    ArvGvFakeCamera* s = nullptr;
+    {
+      std::lock_guard lock(mu);
+      std::swap(s, server);
+    }
+    if (s != nullptr) g_object_unref(s);  // joins the server thread
+  }
 };
 
 namespace {
@@ -94,6 +115,14 @@ void MockGvCamera::Fill(void* buffer_ptr, void* self_ptr, uint32_t /*exposure_us
                   static_cast<int64_t>(arv_buffer_get_timestamp(buffer)), index);
   }
   self->frames_served_.store(index + 1);
+  const int64_t lost_after = self->options_.lost_after_frames;
+  if (lost_after >= 0 && index + 1 >= static_cast<uint64_t>(lost_after)) {
+    {
+      std::lock_guard lock(self->impl_->mu);
+      self->impl_->lose = true;
+    }
+    self->impl_->cv.notify_all();
+  }
 }
 
 std::unique_ptr<MockGvCamera> MockGvCamera::Start(const MockGvCameraOptions& options,
@@ -158,12 +187,31 @@ std::unique_ptr<MockGvCamera> MockGvCamera::Start(const MockGvCameraOptions& opt
             Fill(buffer, data, exposure, gain, fmt);
           }),
       camera.get());
+  if (options.lost_after_frames >= 0) {
+    MockGvCamera* self = camera.get();
+    impl.loser = std::thread([self] {
+      Impl& i = *self->impl_;
+      {
+        std::unique_lock lock(i.mu);
+        i.cv.wait(lock, [&] { return i.lose || i.closing; });
+        if (i.closing) return;
+      }
+      i.StopServer();
+      self->lost_.store(true);
+    });
+  }
   return camera;
 }
 
 MockGvCamera::~MockGvCamera() {
   if (impl_) {
-    if (impl_->server != nullptr) g_object_unref(impl_->server);  // joins the server thread
+    {
+      std::lock_guard lock(impl_->mu);
+      impl_->closing = true;
+    }
+    impl_->cv.notify_all();
+    if (impl_->loser.joinable()) impl_->loser.join();
+    impl_->StopServer();
     if (!impl_->xml_path.empty()) std::remove(impl_->xml_path.c_str());
   }
 }

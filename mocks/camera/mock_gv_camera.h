@@ -37,6 +37,9 @@ struct MockGvCameraOptions {
   int width = 0;  // 0 = sensor size
   int height = 0;
   double frame_rate_hz = 10.0;
+  // Fault (off when < 0): after this many frames the server stops, as an unplugged camera does
+  // (GVCP and the stream go silent; clients see timeouts). `msmcal mock camera --fault lost@N`.
+  int64_t lost_after_frames = -1;
 
   std::string Validate() const;
 };
@@ -57,6 +60,8 @@ class MockGvCamera {
   // when it answered: the readiness check behind "camera ready at ADDRESS".
   bool Answers() const;
   uint64_t frames_served() const { return frames_served_.load(); }
+  // True once the lost_after_frames fault has stopped the server.
+  bool lost() const { return lost_.load(); }
   const MockGvCameraOptions& options() const { return options_; }
 
  private:
@@ -69,6 +74,7 @@ class MockGvCamera {
   FrameSource source_;
   std::unique_ptr<Impl> impl_;
   std::atomic<uint64_t> frames_served_{0};
+  std::atomic<bool> lost_{false};
 };
 
 // Built-in deterministic test pattern. Byte i of a frame (any format, counted over the whole

@@ -7,10 +7,12 @@
 
 #include <algorithm>
 #include <boost/asio.hpp>
+#include <chrono>
 #include <condition_variable>
 #include <deque>
 #include <list>
 #include <mutex>
+#include <optional>
 #include <stdexcept>
 #include <thread>
 #include <vector>
@@ -37,8 +39,13 @@ struct MockGeneratorServer::Impl {
     bool writing = false;                         // an async_write is outstanding
     char buf[65536];
     bool closed = false;
+    bool served = false;    // counted in Impl::served_open (SecondConnection)
+    bool frozen = false;    // FaultKind::kFreeze: read and ignore everything
+    bool delaying = false;  // a reply held for a time (FaultKind::kDelayReply with delay_ms)
+    asio::steady_timer delay_timer;
 
-    Session(Impl* s, tcp::socket sock) : server(s), socket(std::move(sock)) {}
+    Session(Impl* s, tcp::socket sock)
+        : server(s), socket(std::move(sock)), delay_timer(server->io) {}
 
     void Close() {
       if (closed) return;
@@ -46,9 +53,12 @@ struct MockGeneratorServer::Impl {
       boost::system::error_code ignored;
       socket.shutdown(tcp::socket::shutdown_both, ignored);
       socket.close(ignored);
+      delay_timer.cancel();
+      server->OnClosed(*this);
     }
 
-    bool Blocked() const { return pending > server->limits.max_pending_reply_bytes; }
+    // A held reply stalls the connection as a slow instrument does: later messages wait for it.
+    bool Blocked() const { return delaying || pending > server->limits.max_pending_reply_bytes; }
 
     // Reads unless the unsent replies are over the cap (back-pressure: the client's sends
     // block in TCP until it reads its replies).
@@ -109,12 +119,34 @@ struct MockGeneratorServer::Impl {
     }
 
     void Handle(const std::string& message) {
+      if (frozen) return;
+      if (std::optional<Fault> f = server->TakeFault(message, /*reply=*/false)) {
+        server->UpdateStats([](ServerStats& st) { ++st.faults_applied; });
+        if (f->kind == FaultKind::kDropConnection) {
+          Close();
+        } else {
+          frozen = true;
+        }
+        return;
+      }
       std::string reply = server->unit.Process(message);
       if (reply.empty()) return;
       reply.push_back('\n');
-      std::optional<Fault> fault = server->TakeFault(message);
+      std::optional<Fault> fault = server->TakeFault(message, /*reply=*/true);
+      if (fault) server->UpdateStats([](ServerStats& st) { ++st.faults_applied; });
       if (!fault) {
         Send(std::move(reply), false);
+      } else if (fault->kind == FaultKind::kDelayReply && fault->delay_ms >= 0) {
+        delaying = true;
+        delay_timer.expires_after(std::chrono::milliseconds(fault->delay_ms));
+        auto self = shared_from_this();
+        delay_timer.async_wait([self, reply = std::move(reply)](boost::system::error_code ec) {
+          self->delaying = false;
+          if (ec || self->closed) return;
+          self->Send(reply, false);
+          self->Drain();
+          self->MaybeRead();
+        });
       } else if (fault->kind == FaultKind::kDelayReply) {
         std::lock_guard lock(server->mu);
         server->held.emplace_back(weak_from_this(), std::move(reply));
@@ -184,6 +216,10 @@ struct MockGeneratorServer::Impl {
   std::vector<std::pair<std::weak_ptr<Session>, std::string>> held;
   std::atomic<uint64_t> accepted{0};
   bool running = false;
+  // SecondConnection (io thread only): served connections open, and those waiting their turn
+  // (owned here: no read is outstanding on them to keep them alive).
+  int served_open = 0;
+  std::deque<std::shared_ptr<Session>> waiting;
 
   Impl(Mock33520B& u, int port, ServerLimits l) : unit(u), requested_port(port), limits(l) {}
 
@@ -196,10 +232,17 @@ struct MockGeneratorServer::Impl {
     stats_cv.notify_all();
   }
 
-  std::optional<Fault> TakeFault(const std::string& message) {
+  static bool IsMessageFault(FaultKind k) {
+    return k == FaultKind::kDropConnection || k == FaultKind::kFreeze;
+  }
+
+  // The first queued fault of the category (`reply`: reply faults, else message faults) whose
+  // match and skip count say it applies to `message`.
+  std::optional<Fault> TakeFault(const std::string& message, bool reply) {
     std::lock_guard lock(mu);
     const std::string upper = Upper(message);
     for (auto it = faults.begin(); it != faults.end(); ++it) {
+      if (IsMessageFault(it->kind) == reply) continue;
       if (it->match.empty() || upper.find(Upper(it->match)) != std::string::npos) {
         if (it->skip > 0) {
           --it->skip;
@@ -223,11 +266,108 @@ struct MockGeneratorServer::Impl {
       sessions.push_back(session);
       ++accepted;
       UpdateStats([](ServerStats& st) { ++st.connections; });
-      session->MaybeRead();
+      if (served_open == 0 || limits.second_connection == SecondConnection::kServe) {
+        Serve(*session);
+      } else if (limits.second_connection == SecondConnection::kQueue) {
+        waiting.push_back(session);
+      } else {
+        UpdateStats([](ServerStats& st) { ++st.connections_turned_away; });
+        session->Close();
+      }
       Accept();
     });
   }
+
+  void Serve(Session& session) {
+    session.served = true;
+    ++served_open;
+    session.MaybeRead();
+  }
+
+  // A connection closed (either side): the next waiting one, if any, is served.
+  void OnClosed(Session& session) {
+    UpdateStats([](ServerStats& st) { ++st.connections_closed; });
+    if (!session.served) return;
+    session.served = false;
+    --served_open;
+    while (served_open == 0 && !waiting.empty()) {
+      std::shared_ptr<Session> next = std::move(waiting.front());
+      waiting.pop_front();
+      if (!next->closed) Serve(*next);
+    }
+  }
 };
+
+Fault ParseFault(const std::string& text) {
+  auto bad = [&](const std::string& why) {
+    return std::invalid_argument("--fault '" + text + "': " + why +
+                                 " (expected KIND[,after=N][,match=TEXT][,ms=MS], KIND one of "
+                                 "drop, freeze, delay, garbage, drop-mid-reply)");
+  };
+  std::vector<std::string> parts;
+  size_t start = 0;
+  for (;;) {
+    const size_t comma = text.find(',', start);
+    parts.push_back(text.substr(start, comma == std::string::npos ? comma : comma - start));
+    if (comma == std::string::npos) break;
+    start = comma + 1;
+  }
+  Fault f;
+  const std::string& kind = parts[0];
+  if (kind == "drop") {
+    f.kind = FaultKind::kDropConnection;
+  } else if (kind == "freeze") {
+    f.kind = FaultKind::kFreeze;
+  } else if (kind == "delay") {
+    f.kind = FaultKind::kDelayReply;
+  } else if (kind == "garbage") {
+    f.kind = FaultKind::kGarbageReply;
+  } else if (kind == "drop-mid-reply") {
+    f.kind = FaultKind::kDropMidReply;
+  } else {
+    throw bad("unknown kind '" + kind + "'");
+  }
+  auto number = [&](const std::string& key, const std::string& value) -> int64_t {
+    size_t used = 0;
+    int64_t v = -1;
+    try {
+      v = std::stoll(value, &used);
+    } catch (const std::exception&) {
+      used = 0;
+    }
+    if (used != value.size() || value.empty() || v < 0)
+      throw bad(key + "=" + value + ": not a non-negative integer");
+    return v;
+  };
+  bool has_ms = false;
+  for (size_t i = 1; i < parts.size(); ++i) {
+    const size_t eq = parts[i].find('=');
+    if (eq == std::string::npos) throw bad("'" + parts[i] + "' is not KEY=VALUE");
+    const std::string key = parts[i].substr(0, eq), value = parts[i].substr(eq + 1);
+    if (key == "after") {
+      f.skip = static_cast<int>(std::min<int64_t>(number(key, value), 1 << 30));
+    } else if (key == "match") {
+      f.match = value;
+    } else if (key == "ms") {
+      f.delay_ms = number(key, value);
+      has_ms = true;
+    } else {
+      throw bad("unknown key '" + key + "'");
+    }
+  }
+  if (has_ms && f.kind != FaultKind::kDelayReply) throw bad("ms= applies to delay only");
+  if (f.kind == FaultKind::kDelayReply && !has_ms) throw bad("delay needs ms=MS");
+  return f;
+}
+
+SecondConnection ParseSecondConnection(const std::string& text) {
+  if (text == "serve") return SecondConnection::kServe;
+  if (text == "queue") return SecondConnection::kQueue;
+  if (text == "close") return SecondConnection::kClose;
+  throw std::invalid_argument("'" + text +
+                              "': a second connection is served with serve, queue "
+                              "or close");
+}
 
 MockGeneratorServer::MockGeneratorServer(Mock33520B& unit, int port, ServerLimits limits)
     : impl_(std::make_unique<Impl>(unit, port, limits)) {}
@@ -262,6 +402,7 @@ void MockGeneratorServer::Stop() {
   asio::post(s.io, [&s] {
     boost::system::error_code ignored;
     s.acceptor.close(ignored);
+    auto waiting = std::move(s.waiting);  // not served again by OnClosed below
     for (auto& w : s.sessions) {
       if (auto p = w.lock()) p->Close();
     }
@@ -321,8 +462,8 @@ MockGeneratorPair::MockGeneratorPair(GeneratorPairOptions options, ClockNs clock
   unit1_->SetReferenceInput([] { return false; });  // master runs on its internal reference
   unit2_->SetReferenceInput([this] { return reference_wired_.load(); });
   if (options.trigger_wired) unit1_->AddTriggerOutTarget(unit2_.get());
-  server1_ = std::make_unique<MockGeneratorServer>(*unit1_, options.port1);
-  server2_ = std::make_unique<MockGeneratorServer>(*unit2_, options.port2);
+  server1_ = std::make_unique<MockGeneratorServer>(*unit1_, options.port1, options.limits1);
+  server2_ = std::make_unique<MockGeneratorServer>(*unit2_, options.port2, options.limits2);
   server1_->Start();
   server2_->Start();
 }

@@ -18,6 +18,39 @@ namespace msmcal::sim {
 using hall_mcu::Frame;
 using hall_mcu::FrameType;
 
+// "flip@1200", "drop@300", "reset@5000", "stall@9000" or "stall@9000:2000" (ms).
+McuFault ParseMcuFault(const std::string& text) {
+  const size_t at = text.find('@');
+  if (at == std::string::npos) {
+    throw std::runtime_error("--fault '" + text + "': expected KIND@FRAME, e.g. flip@1200");
+  }
+  const std::string kind = text.substr(0, at);
+  McuFault fault;
+  if (kind == "flip") {
+    fault.kind = McuFaultKind::kFlipBit;
+  } else if (kind == "drop") {
+    fault.kind = McuFaultKind::kDropByte;
+  } else if (kind == "reset") {
+    fault.kind = McuFaultKind::kReset;
+  } else if (kind == "stall") {
+    fault.kind = McuFaultKind::kStall;
+  } else {
+    throw std::runtime_error("--fault '" + text + "': kind must be flip|drop|reset|stall");
+  }
+  std::string rest = text.substr(at + 1);
+  try {
+    const size_t colon = rest.find(':');
+    if (colon != std::string::npos) {
+      fault.stall_ms = std::stoll(rest.substr(colon + 1));
+      rest = rest.substr(0, colon);
+    }
+    fault.data_frame = std::stoull(rest);
+  } catch (const std::exception&) {
+    throw std::runtime_error("--fault '" + text + "': FRAME must be a non-negative integer");
+  }
+  return fault;
+}
+
 std::string MockMcuOptions::Validate() const {
   if (!(speed >= 0)) {
     return "MockMcuOptions.speed = " + std::to_string(speed) + ": violated constraint speed >= 0";

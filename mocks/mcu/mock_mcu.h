@@ -38,6 +38,11 @@ struct McuFault {
   int64_t stall_ms = -1;  // kStall only: < 0 means until Stop()
 };
 
+// The command-line form (`msmcal mock mcu --fault`, `msmcal demo --mock-fault`): "flip@1200",
+// "drop@300", "reset@5000", "stall@9000" (until stopped) or "stall@9000:2000" (ms). Throws
+// std::runtime_error naming the text.
+McuFault ParseMcuFault(const std::string& text);
+
 struct MockMcuOptions {
   std::string link_path;    // if set, a symlink to the pty slave is created here (and removed)
   double speed = 0;         // 1: real time, 2: twice as fast, 0: as fast as possible

@@ -787,6 +787,19 @@ SessionResult RunSession(const OrchestratorOptions& options, const dataset::Reco
     // the interchange folder holds.
     auto hall_done = [&](const std::string& name, const acquisition::HallRecorderResult& r) {
       const fs::path csv = out / "hall" / (name + ".csv");
+      // An MCU reset restarts MCU time: the writer put the readings after it into
+      // <name>-reset<N>.csv. The recording is not continuous, so it is not journalled as done
+      // (the session used to go on silently with the part before the reset): the session stops,
+      // and `msmcal resume` keeps the pieces aside and takes the recording again.
+      const fs::path after_reset = out / "hall" / (name + "-reset1.csv");
+      if (fs::exists(after_reset))
+        throw std::runtime_error(csv.string() + ": the Hall MCU reset during the recording (" +
+                                 std::to_string(r.counts.driver.resets) +
+                                 " reset(s) counted; MCU time restarted, the readings after it "
+                                 "are in " +
+                                 after_reset.filename().string() +
+                                 "): a Hall recording must be continuous; `msmcal resume` "
+                                 "takes it again");
       const dataset::HallRecording rec =
           interchange::ReadHallCsv(csv, acquisition::ClockCsvPathFor(csv));
       journal->AppendHallReadings(name, rec.readings);

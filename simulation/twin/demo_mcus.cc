@@ -17,7 +17,8 @@ DemoMcus::~DemoMcus() {
   for (auto& m : impl_->mcus) m->Stop();
 }
 
-std::string DemoMcus::Start(const sim::SimOptions& options, orchestrator::HallRun run) {
+std::string DemoMcus::Start(const sim::SimOptions& options, orchestrator::HallRun run,
+                            const std::vector<sim::McuFault>& faults) {
   const sim::HallRecordingKind kind = run == orchestrator::HallRun::kBackground
                                           ? sim::HallRecordingKind::kBackground
                                           : sim::HallRecordingKind::kActual;
@@ -25,6 +26,7 @@ std::string DemoMcus::Start(const sim::SimOptions& options, orchestrator::HallRu
   mo.speed = 0;  // as fast as the host reads
   mo.record_sent = false;
   mo.rate_hz = static_cast<uint16_t>(options.hall.sample_rate_hz);
+  mo.faults = faults;
   auto mcu = std::make_unique<sim::MockMcu>(
       mo, std::make_unique<sim::RigHallSource>(options, kind, options.seed));
   mcu->Start();

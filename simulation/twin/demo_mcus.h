@@ -4,9 +4,14 @@
 
 #include <memory>
 #include <string>
+#include <vector>
 
 #include "mocks/rig/sim_options.h"
 #include "sessions/orchestrator/rig_operator.h"
+
+namespace msmcal::sim {
+struct McuFault;  // mocks/mcu/mock_mcu.h
+}  // namespace msmcal::sim
 
 namespace msmcal::twin {
 
@@ -17,8 +22,9 @@ class DemoMcus {
   DemoMcus(const DemoMcus&) = delete;
   DemoMcus& operator=(const DemoMcus&) = delete;
   // Starts a mock MCU streaming the simulator's Hall model for `run` as fast as it is read;
-  // returns its pty device path.
-  std::string Start(const sim::SimOptions& options, orchestrator::HallRun run);
+  // returns its pty device path. `faults`: injected by the mock (none for a normal session).
+  std::string Start(const sim::SimOptions& options, orchestrator::HallRun run,
+                    const std::vector<sim::McuFault>& faults = {});
 
  private:
   struct Impl;

@@ -13,6 +13,12 @@ std::string DemoRigOptions::Validate() const {
     return "DemoRigOptions.camera_frame_rate_hz = " + std::to_string(camera_frame_rate_hz) +
            ": must be > 0";
   if (std::string e = sim.Validate(); !e.empty()) return "DemoRigOptions.sim: " + e;
+  if ((external_generator_port1 > 0) != (external_generator_port2 > 0) ||
+      external_generator_port1 < 0 || external_generator_port2 < 0 ||
+      external_generator_port1 > 65535 || external_generator_port2 > 65535)
+    return "DemoRigOptions.external_generator_port1/2 = " +
+           std::to_string(external_generator_port1) + "/" +
+           std::to_string(external_generator_port2) + ": both 1..65535, or both 0";
   return {};
 }
 
@@ -24,14 +30,18 @@ DemoRig::DemoRig(const DemoRigOptions& options) : options_(options) {
     // The background MCU started for the rig check (MakeOrchestratorOptions) is handed out once.
     if (run == orchestrator::HallRun::kBackground && !background_device_.empty())
       return std::exchange(background_device_, std::string());
-    return mcus_->Start(options_.sim, run);
+    return mcus_->Start(options_.sim, run,
+                        run == orchestrator::HallRun::kBackground ? options_.background_mcu_faults
+                                                                  : options_.actual_mcu_faults);
   });
-  generators_ = std::make_unique<sim::MockGeneratorPair>(sim::GeneratorPairOptions{});
+  if (options.external_generator_port1 == 0)
+    generators_ = std::make_unique<sim::MockGeneratorPair>(sim::GeneratorPairOptions{});
   sim::MockGvCameraOptions cam;
   cam.address = options.camera_address;
   cam.sensor_width = sim_->camera().width;
   cam.sensor_height = sim_->camera().height;
   cam.frame_rate_hz = options.camera_frame_rate_hz;
+  cam.lost_after_frames = options.camera_lost_after_frames;
   std::string error;
   camera_ = sim::MockGvCamera::Start(cam, world_->MakeFrameSource(), &error);
   if (!camera_) throw std::runtime_error("mock camera on " + options.camera_address + ": " + error);
@@ -42,7 +52,17 @@ DemoRig::~DemoRig() {
   mcus_.reset();
 }
 
-int DemoRig::generators_port(int unit) const { return generators_->port(unit); }
+int DemoRig::generators_port(int unit) const {
+  if (!generators_)
+    return unit == 1 ? options_.external_generator_port1 : options_.external_generator_port2;
+  return generators_->port(unit);
+}
+
+sim::MockGeneratorPair& DemoRig::generators() {
+  if (!generators_)
+    throw std::logic_error("DemoRig::generators(): the generators are served by another process");
+  return *generators_;
+}
 
 namespace {
 
@@ -93,7 +113,7 @@ gen::RigGeneratorConfig DemoGeneratorConfig(const sim::SimOptions& sim, int port
 }
 
 gen::RigGeneratorConfig DemoRig::GeneratorConfig() const {
-  return DemoGeneratorConfig(options_.sim, generators_->port(1), generators_->port(2));
+  return DemoGeneratorConfig(options_.sim, generators_port(1), generators_port(2));
 }
 
 orchestrator::OrchestratorOptions DemoRig::MakeOrchestratorOptions(
@@ -108,7 +128,8 @@ orchestrator::OrchestratorOptions DemoRig::MakeOrchestratorOptions(
   // out again when the background recording is due (so the guided operator is told to set it
   // up at the right time).
   if (background_device_.empty())
-    background_device_ = mcus_->Start(options_.sim, orchestrator::HallRun::kBackground);
+    background_device_ = mcus_->Start(options_.sim, orchestrator::HallRun::kBackground,
+                                      options_.background_mcu_faults);
   o.mcu.device = background_device_;
   o.background_seconds = 0;  // the mock MCU ends with the simulator's recording
   o.mcu_rate_hz = static_cast<uint16_t>(options_.sim.hall.sample_rate_hz);

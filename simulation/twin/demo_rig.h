@@ -11,6 +11,7 @@
 
 #include "drivers/generator/rig_config.h"
 #include "mocks/camera/mock_gv_camera.h"
+#include "mocks/mcu/mock_mcu.h"
 #include "mocks/rig/rig_simulator.h"
 #include "sessions/orchestrator/orchestrator.h"
 #include "simulation/twin/demo_mcus.h"
@@ -26,6 +27,12 @@ struct DemoRigOptions {
   sim::SimOptions sim;
   std::string camera_address = "127.0.0.1";  // one GigE Vision server per address
   double camera_frame_rate_hz = 20.0;
+  // The generators served by another process (`msmcal mock generators`, e.g. with faults): the
+  // ports of unit 1 and unit 2 on 127.0.0.1. 0 and 0: the rig serves its own pair.
+  int external_generator_port1 = 0, external_generator_port2 = 0;
+  // Faults of the rig's own mocks (docs/fault-campaign.md); none by default.
+  int64_t camera_lost_after_frames = -1;  // MockGvCameraOptions::lost_after_frames
+  std::vector<sim::McuFault> background_mcu_faults, actual_mcu_faults;
   std::string Validate() const;
 };
 
@@ -46,7 +53,8 @@ class DemoRig {
   const sim::RigSimulator& sim() const { return *sim_; }
   std::shared_ptr<const sim::RigSimulator> shared_sim() const { return sim_; }
   SimulatedWorld& world() { return *world_; }
-  sim::MockGeneratorPair& generators() { return *generators_; }
+  // The rig's own generator pair; not with external generators (then a std::logic_error).
+  sim::MockGeneratorPair& generators();
   int generators_port(int unit) const;  // TCP port of unit 1 or 2
   sim::MockGvCamera& camera() { return *camera_; }
 

@@ -88,6 +88,21 @@ TEST_F(Keysight33500Test, ConfiguresSineAndReadsBackState) {
   EXPECT_FALSE(unit_->AnyOutputOn());
 }
 
+// The instrument drops the connection under the safe state's OUTP OFF (fault campaign row
+// scpi-drop-safe-state): SafeState() tries again on a new connection and confirms.
+TEST_F(Keysight33500Test, SafeStateConfirmsOnANewConnectionWhenTheOpenOneIsDropped) {
+  Start("Keysight Technologies,33520B,MY2,4.0");
+  auto g = OpenKeysight33500(Options());
+  g->SetOutput(1, true);
+  ASSERT_TRUE(unit_->AnyOutputOn());
+  const uint64_t connections = server_->ConnectionsAccepted();
+  server_->InjectFault(sim::ParseFault("drop,match=OUTP1 OFF"));
+  EXPECT_TRUE(g->SafeState());
+  EXPECT_FALSE(unit_->AnyOutputOn());
+  EXPECT_EQ(server_->Stats().faults_applied, 1u);
+  EXPECT_EQ(server_->ConnectionsAccepted(), connections + 1);
+}
+
 TEST_F(Keysight33500Test, LimitsAreRefusedBeforeAnythingIsSent) {
   Start("Keysight Technologies,33520B,MY2,4.0");
   std::vector<std::string> sent;

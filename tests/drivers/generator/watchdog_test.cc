@@ -16,16 +16,18 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <filesystem>
 #include <fstream>
+#include <optional>
 #include <sstream>
 #include <string>
 #include <vector>
 
+#include "drivers/scpi/scpi_client.h"
 #include "test_rig.h"
 #include "tests/testing/child_process.h"
-
 
 namespace msmcal::gen {
 namespace {
@@ -66,9 +68,10 @@ class WatchdogTest : public ::testing::Test {
     // The watchdog outlives the SIGKILLed child; as subreaper this test becomes its parent and
     // can read its exit status.
     ASSERT_EQ(prctl(PR_SET_CHILD_SUBREAPER, 1), 0);
+    std::string name = ::testing::UnitTest::GetInstance()->current_test_info()->name();
+    std::replace(name.begin(), name.end(), '/', '_');  // parameterised: "Test/Param"
     log_ = fs::temp_directory_path() /
-           ("watchdog_test_" + std::to_string(getpid()) + "_" +
-            ::testing::UnitTest::GetInstance()->current_test_info()->name() + ".log");
+           ("watchdog_test_" + std::to_string(getpid()) + "_" + name + ".log");
     fs::remove(log_);
   }
   void TearDown() override { fs::remove(log_); }
@@ -172,6 +175,99 @@ TEST_F(WatchdogTest, CleanExitStandsTheWatchdogDownWithoutContactingTheGenerator
   EXPECT_FALSE(fs::exists(log_)) << ReadFile(log_);
   close(child_.from_child);
 }
+
+// The strictest 33500 (docs/watchdog.md): one SCPI connection at a time, a second one queued
+// (accepted, served once the first closes) or closed at once. The watchdog connects only after
+// the dead process's sockets are closed, and retries a connection turned away, so it still
+// switches everything off within 2 s of the SIGKILL; then `OUTP1?;:OUTP2?` on a new connection
+// confirms it on each unit.
+class WatchdogOneConnectionTest : public WatchdogTest,
+                                  public ::testing::WithParamInterface<sim::SecondConnection> {
+ protected:
+  static sim::GeneratorPairOptions OneAtATime(sim::SecondConnection mode) {
+    sim::GeneratorPairOptions o;
+    o.limits1.second_connection = o.limits2.second_connection = mode;
+    return o;
+  }
+  WatchdogOneConnectionTest() { strict_.emplace(OneAtATime(GetParam())); }
+  std::optional<sim::MockGeneratorPair> strict_;  // instead of the fixture's pair_
+};
+
+TEST_P(WatchdogOneConnectionTest, SigkillTurnsEveryOutputOffWithinTwoSeconds) {
+  sim::MockGeneratorPair& pair = *strict_;
+  child_ = Spawn({MSMCAL_WATCHDOG_CHILD, "drive", testing::SourceDir() + "/config/rig.yaml",
+                  std::to_string(pair.port(1)), std::to_string(pair.port(2)), log_.string()});
+  const std::string ready = ReadLine(child_.from_child);
+  ASSERT_EQ(ready.rfind("ready ", 0), 0u) << ready;
+  const pid_t wd = static_cast<pid_t>(std::stol(ready.substr(6)));
+  const int wd_pidfd = PidfdOpen(wd);
+  ASSERT_GE(wd_pidfd, 0);
+  for (int u = 1; u <= 2; ++u) ASSERT_TRUE(pair.unit(u).AnyOutputOn()) << "unit " << u;
+
+  // The mode is in effect: while the driving child holds its connection, another client is not
+  // served (queued: no reply within its deadline; closed: the connection is lost).
+  {
+    scpi::ScpiClientOptions probe_options;
+    probe_options.port = pair.port(1);
+    probe_options.io_timeout_ms = 300;
+    scpi::ScpiClient probe(probe_options);
+    probe.Connect();
+    try {
+      const std::string reply = probe.Query("*IDN?");
+      ADD_FAILURE() << "a second connection was served: " << reply;
+    } catch (const scpi::ScpiError& e) {
+      EXPECT_EQ(e.kind(), GetParam() == sim::SecondConnection::kQueue
+                              ? scpi::ErrorKind::kTimeout
+                              : scpi::ErrorKind::kConnectionLost)
+          << e.what();
+    }
+  }  // closed: a queued probe is dropped when its turn comes
+
+  const auto killed_at = Clock::now();
+  ASSERT_EQ(kill(child_.pid, SIGKILL), 0);
+  auto left_ms = [&] {
+    return std::max<int64_t>(
+        0, 2000 - std::chrono::duration_cast<std::chrono::milliseconds>(Clock::now() - killed_at)
+                      .count());
+  };
+  EXPECT_TRUE(pair.unit(1).WaitUntil(BothChannelsOff, left_ms()));
+  EXPECT_TRUE(pair.unit(2).WaitUntil(BothChannelsOff, left_ms()));
+  EXPECT_LT(Clock::now() - killed_at, std::chrono::seconds(2));
+  int status = 0;
+  ASSERT_EQ(waitpid(child_.pid, &status, 0), child_.pid);
+  EXPECT_EQ(WaitExit(wd, wd_pidfd, 5000), kWatchdogFiredConfirmed);
+  close(wd_pidfd);
+
+  // Confirmed by the instrument: the watchdog's connection is closed, so this one is served.
+  for (int u = 1; u <= 2; ++u) {
+    scpi::ScpiClientOptions o;
+    o.port = pair.port(u);
+    o.io_timeout_ms = 2000;
+    scpi::ScpiClient confirm(o);
+    confirm.Connect();
+    EXPECT_EQ(confirm.Query("OUTP1?;:OUTP2?"), "0;0") << "unit " << u;
+  }
+  const std::string log = ReadFile(log_);
+  for (int u = 1; u <= 2; ++u) {
+    EXPECT_NE(log.find("unit" + std::to_string(u) + " (127.0.0.1:" + std::to_string(pair.port(u)) +
+                       ") outputs off, confirmed"),
+              std::string::npos)
+        << log;
+  }
+  if (GetParam() == sim::SecondConnection::kClose) {
+    EXPECT_GE(pair.server(1).Stats().connections_turned_away, 1u);  // the probe
+  }
+  close(child_.to_child);
+  close(child_.from_child);
+}
+
+INSTANTIATE_TEST_SUITE_P(SecondConnection, WatchdogOneConnectionTest,
+                         ::testing::Values(sim::SecondConnection::kQueue,
+                                           sim::SecondConnection::kClose),
+                         [](const ::testing::TestParamInfo<sim::SecondConnection>& i) {
+                           return std::string(i.param == sim::SecondConnection::kQueue ? "Queued"
+                                                                                       : "Closed");
+                         });
 
 TEST(WatchdogSwitchOff, GivesUpOnAnUnreachableUnitWithinTheRetryWindowAndSaysWhy) {
   sim::MockGeneratorPair pair{sim::GeneratorPairOptions{}};

@@ -1,5 +1,6 @@
 // The mock's TCP front under clients that misbehave: one that never reads its replies, one that
-// sends a line longer than the input buffer. Real sockets on loopback.
+// sends a line longer than the input buffer; the injected faults of the fault campaign (drop,
+// freeze, timed delay) and the one-connection-at-a-time modes. Real sockets on loopback.
 #include "mocks/generator/mock_server.h"
 
 #include <arpa/inet.h>
@@ -9,6 +10,9 @@
 #include <sys/socket.h>
 #include <unistd.h>
 
+#include <chrono>
+#include <memory>
+#include <stdexcept>
 #include <string>
 #include <thread>
 
@@ -51,6 +55,19 @@ class Client {
       }
       if (!Fill()) return "<timeout>";
     }
+  }
+
+  // True when the server closed the connection (EOF) within the failure bound, nothing before.
+  bool PeerClosed() {
+    pollfd p{fd_, POLLIN, 0};
+    if (poll(&p, 1, kFailAfterMs) != 1) return false;
+    char c;
+    return recv(fd_, &c, 1, 0) == 0;
+  }
+  // True when bytes are waiting to be read right now (no wait).
+  bool HasInput() {
+    pollfd p{fd_, POLLIN, 0};
+    return !in_.empty() || poll(&p, 1, 0) == 1;
   }
 
   // Counts '\n'-terminated replies until `count` arrived; false on timeout.
@@ -150,6 +167,135 @@ TEST(MockServerTest, OverlongMessageOverrunsInputBufferAndConnectionStaysUsable)
   at_limit += std::string(4096 - at_limit.size(), ' ');
   ASSERT_TRUE(c.SendAll(at_limit + "\nFREQ?;:SYST:ERR?\n"));
   EXPECT_EQ(c.ReadLine(), "+2.0000000000000E+03;+0,\"No error\"");
+}
+
+}  // namespace
+}  // namespace msmcal::sim
+
+namespace msmcal::sim {
+namespace {
+
+UnitOptions Identity() {
+  UnitOptions u;
+  u.identity = "K,33520B,1,2";
+  return u;
+}
+
+TEST(MockServerFaultTest, ParseFaultReadsTheCommandLineFormAndNamesWhatIsWrong) {
+  Fault f = ParseFault("drop,after=3,match=OUTP2 ON");
+  EXPECT_EQ(f.kind, FaultKind::kDropConnection);
+  EXPECT_EQ(f.skip, 3);
+  EXPECT_EQ(f.match, "OUTP2 ON");
+  f = ParseFault("delay,match=*OPC?,ms=5000");
+  EXPECT_EQ(f.kind, FaultKind::kDelayReply);
+  EXPECT_EQ(f.delay_ms, 5000);
+  EXPECT_EQ(ParseFault("freeze").kind, FaultKind::kFreeze);
+  EXPECT_EQ(ParseFault("garbage").kind, FaultKind::kGarbageReply);
+  EXPECT_EQ(ParseFault("drop-mid-reply").kind, FaultKind::kDropMidReply);
+  auto error = [](const std::string& text) {
+    try {
+      ParseFault(text);
+    } catch (const std::invalid_argument& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  EXPECT_NE(error("melt").find("--fault 'melt': unknown kind 'melt'"), std::string::npos);
+  EXPECT_NE(error("drop,after=-1").find("after=-1: not a non-negative integer"), std::string::npos);
+  EXPECT_NE(error("delay").find("delay needs ms=MS"), std::string::npos);
+  EXPECT_NE(error("drop,ms=5").find("ms= applies to delay only"), std::string::npos);
+  EXPECT_NE(error("drop,when=now").find("unknown key 'when'"), std::string::npos);
+  EXPECT_EQ(ParseSecondConnection("queue"), SecondConnection::kQueue);
+  EXPECT_THROW(ParseSecondConnection("refuse"), std::invalid_argument);
+}
+
+TEST(MockServerFaultTest, DropClosesTheConnectionWithoutExecutingTheMessage) {
+  Mock33520B unit(Identity(), nullptr);
+  MockGeneratorServer server(unit, 0);
+  server.InjectFault(ParseFault("drop,match=OUTP1"));
+  server.Start();
+  Client a(server.port());
+  ASSERT_TRUE(a.SendAll("*IDN?\n"));
+  EXPECT_EQ(a.ReadLine(), "K,33520B,1,2");
+  ASSERT_TRUE(a.SendAll("OUTP1 ON\n"));
+  EXPECT_TRUE(a.PeerClosed());
+  Client b(server.port());  // the instrument itself is fine
+  ASSERT_TRUE(b.SendAll("OUTP1?\n"));
+  EXPECT_EQ(b.ReadLine(), "0");
+  EXPECT_EQ(server.Stats().faults_applied, 1u);
+}
+
+TEST(MockServerFaultTest, FreezeIgnoresEverythingOnThatConnectionAndServesTheNextOne) {
+  Mock33520B unit(Identity(), nullptr);
+  MockGeneratorServer server(unit, 0);
+  server.InjectFault(ParseFault("freeze,after=1"));
+  server.Start();
+  Client a(server.port());
+  ASSERT_TRUE(a.SendAll("*IDN?\n"));
+  EXPECT_EQ(a.ReadLine(), "K,33520B,1,2");
+  ASSERT_TRUE(a.SendAll("OUTP1 ON\n*IDN?\n"));
+  ASSERT_TRUE(
+      server.WaitForStats([](const ServerStats& s) { return s.messages == 3; }, kFailAfterMs));
+  Client b(server.port());
+  ASSERT_TRUE(b.SendAll("OUTP1?\n"));
+  EXPECT_EQ(b.ReadLine(), "0");  // OUTP1 ON was not executed
+  EXPECT_FALSE(a.HasInput());    // and the frozen connection's query got no reply
+  EXPECT_EQ(server.Stats().connections_closed, 0u);  // it stays open
+}
+
+TEST(MockServerFaultTest, TimedDelayHoldsTheReplyAndTheRepliesAfterIt) {
+  Mock33520B unit(Identity(), nullptr);
+  MockGeneratorServer server(unit, 0);
+  server.InjectFault(ParseFault("delay,match=*OPC?,ms=300"));
+  server.Start();
+  Client a(server.port());
+  const auto t0 = std::chrono::steady_clock::now();
+  ASSERT_TRUE(a.SendAll("*OPC?\n*IDN?\n"));
+  EXPECT_EQ(a.ReadLine(), "1");
+  EXPECT_GE(std::chrono::steady_clock::now() - t0, std::chrono::milliseconds(300));
+  EXPECT_EQ(a.ReadLine(), "K,33520B,1,2");  // in order: a slow instrument, not a reordering one
+}
+
+TEST(MockServerFaultTest, QueuedSecondConnectionIsServedWhenTheFirstCloses) {
+  Mock33520B unit(Identity(), nullptr);
+  ServerLimits limits;
+  limits.second_connection = SecondConnection::kQueue;
+  MockGeneratorServer server(unit, 0, limits);
+  server.Start();
+  auto a = std::make_unique<Client>(server.port());
+  ASSERT_TRUE(a->SendAll("*IDN?\n"));
+  EXPECT_EQ(a->ReadLine(), "K,33520B,1,2");
+  Client b(server.port());
+  ASSERT_TRUE(b.connected());  // accepted...
+  ASSERT_TRUE(b.SendAll("*IDN?\n"));
+  ASSERT_TRUE(
+      server.WaitForStats([](const ServerStats& s) { return s.connections == 2; }, kFailAfterMs));
+  ASSERT_TRUE(a->SendAll("*OPC?\n"));
+  EXPECT_EQ(a->ReadLine(), "1");
+  EXPECT_EQ(server.Stats().messages, 2u);  // ...but not read while the first is open
+  EXPECT_FALSE(b.HasInput());
+  a.reset();
+  EXPECT_EQ(b.ReadLine(), "K,33520B,1,2");
+}
+
+TEST(MockServerFaultTest, ClosedSecondConnectionIsTurnedAwayAndTheNextOneServed) {
+  Mock33520B unit(Identity(), nullptr);
+  ServerLimits limits;
+  limits.second_connection = SecondConnection::kClose;
+  MockGeneratorServer server(unit, 0, limits);
+  server.Start();
+  auto a = std::make_unique<Client>(server.port());
+  ASSERT_TRUE(a->SendAll("*IDN?\n"));
+  EXPECT_EQ(a->ReadLine(), "K,33520B,1,2");
+  Client b(server.port());
+  EXPECT_TRUE(b.PeerClosed());
+  EXPECT_EQ(server.Stats().connections_turned_away, 1u);
+  a.reset();
+  ASSERT_TRUE(server.WaitForStats([](const ServerStats& s) { return s.connections_closed == 2; },
+                                  kFailAfterMs));
+  Client c(server.port());
+  ASSERT_TRUE(c.SendAll("*IDN?\n"));
+  EXPECT_EQ(c.ReadLine(), "K,33520B,1,2");
 }
 
 }  // namespace

@@ -16,6 +16,7 @@
 
 #include "acquisition/hall/hall_csv_writer.h"
 #include "mocks/generator/mock_server.h"
+#include "mocks/mcu/mock_mcu.h"
 #include "mocks/rig/truth_io.h"
 #include "processing/solver/pipeline.h"
 #include "sessions/interchange/interchange_io.h"
@@ -99,13 +100,14 @@ TEST(Orchestrator, RunsACompleteSessionThroughTheMocksAndTheSolverRecoversTruth)
   EXPECT_TRUE(result.rig_check.ok);
   // Typed events: one per final frame decision (in plan order), both Hall recordings with the
   // counts of the result, every step's state, the safe state, the folder written last; each
-  // event's text is a line of the log.
+  // event's text (a step state's aside) is a line of the log.
   {
     using Kind = SessionEvent::Kind;
     std::vector<std::string> decided, hall_done, steps;
     for (const auto& e : events) {
-      if (e.kind != Kind::kStepState)  // step states are journalled, not logged
+      if (e.kind != Kind::kStepState) {  // step states are journalled, not logged
         EXPECT_NE(std::find(progress.begin(), progress.end(), e.text), progress.end()) << e.text;
+      }
       if (e.kind == Kind::kFrameDecided) {
         decided.push_back(e.file);
         EXPECT_TRUE(e.accepted) << e.file;
@@ -276,6 +278,36 @@ TEST(Orchestrator, AHallSinkFailureEndsInTheSafeStateWithTheError) {
             std::string::npos)
       << log;
   EXPECT_NE(log.find("safe state: generator outputs off (confirmed)"), std::string::npos) << log;
+}
+
+// The MCU reboots in the middle of the actual recording (fault campaign row mcu-reset): MCU time
+// restarts, the readings after it go to hall/actual-reset1.csv. The recording is not continuous:
+// the session stops with an error that says so, outputs off, the step not done (resume retakes).
+TEST(Orchestrator, AnMcuResetDuringARecordingStopsTheSessionInTheSafeState) {
+  DemoRigOptions ro;
+  ro.sim = TinySim();
+  ro.actual_mcu_faults.push_back(sim::ParseMcuFault("reset@800"));
+  DemoRig rig(ro);
+  const fs::path dir = FreshDir("mcu_reset");
+  OrchestratorOptions options = rig.MakeOrchestratorOptions(dir);
+  try {
+    RunSession(options, rig.Plan(), rig.world(), nullptr);
+    FAIL() << "expected the session to stop at the MCU reset";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("actual.csv: the Hall MCU reset during the recording"),
+              std::string::npos)
+        << e.what();
+  }
+  EXPECT_TRUE(fs::exists(dir / "hall" / "actual-reset1.csv"));
+  EXPECT_FALSE(rig.generators().unit(1).AnyOutputOn());
+  EXPECT_FALSE(rig.generators().unit(2).AnyOutputOn());
+  const store::SystemClock clock;
+  auto journal = store::SessionStore::Open(dir, clock);
+  for (const auto& [name, state] : journal->Steps()) {
+    if (name == "step2") {
+      EXPECT_NE(state, store::StepState::kDone);
+    }
+  }
 }
 
 TEST(Orchestrator, SessionSignalsPlayThePlansTriggerTableAndRefuseAnotherPeriod) {
