@@ -261,18 +261,32 @@ struct PhysicalTwin::Impl {
     return r;
   }
 
-  sim::Scene Scene(int64_t end_ns) const {
+  mutable std::mutex stamps_mu;
+  std::deque<std::pair<int64_t, FrameStamp>> stamps;  // (device timestamp, stamp)
+
+  sim::Scene Scene(int64_t end_ns, uint64_t* generation_out = nullptr) const {
     TwinState s;
     {
       std::lock_guard lock(state_mu);
       s = state;
+      if (generation_out) *generation_out = generation;
     }
     const auto exposure_ns = static_cast<int64_t>(options.exposure_s * 1e9);
     return sim->StateScene(ToRigState(s), Pulses(end_ns - exposure_ns, end_ns));
   }
 
-  void Fill(uint8_t* data, int width, int height, sim::SimPixelFormat fmt, uint64_t frame_index) {
-    const sim::Scene scene = Scene(Now());
+  void Fill(uint8_t* data, int width, int height, sim::SimPixelFormat fmt, int64_t timestamp_ns,
+            uint64_t frame_index) {
+    const int64_t end_ns = Now();
+    FrameStamp stamp;
+    const sim::Scene scene = Scene(end_ns, &stamp.generation);
+    stamp.exposure_end_ns = end_ns;
+    stamp.exposure_start_ns = end_ns - static_cast<int64_t>(options.exposure_s * 1e9);
+    {
+      std::lock_guard lock(stamps_mu);
+      stamps.emplace_back(timestamp_ns, stamp);
+      while (stamps.size() > 256) stamps.pop_front();
+    }
     std::lock_guard lock(render_mu);
     // The same scene renders to the same image but for its noise: re-render only on change.
     bool same = have_image && scene.boards.size() == last_boards &&
@@ -477,8 +491,9 @@ PhysicalTwin::PhysicalTwin(const PhysicalTwinOptions& options) : impl_(std::make
     m.camera = sim::MockGvCamera::Start(
         cam,
         [impl](uint8_t* data, int width, int height, sim::SimPixelFormat fmt,
-               int64_t /*timestamp_ns*/,
-               uint64_t frame_index) { impl->Fill(data, width, height, fmt, frame_index); },
+               int64_t timestamp_ns, uint64_t frame_index) {
+          impl->Fill(data, width, height, fmt, timestamp_ns, frame_index);
+        },
         &error);
     if (!m.camera)
       throw std::runtime_error("twin camera on " + options.camera_address + ": " + error);
@@ -660,5 +675,12 @@ std::vector<sim::PulseAtPose> PhysicalTwin::PulsesBetween(int64_t from_ns, int64
 }
 
 sim::Scene PhysicalTwin::SceneAt(int64_t end_ns) const { return impl_->Scene(end_ns); }
+
+std::optional<FrameStamp> PhysicalTwin::FrameStampFor(int64_t device_timestamp_ns) const {
+  std::lock_guard lock(impl_->stamps_mu);
+  for (auto it = impl_->stamps.rbegin(); it != impl_->stamps.rend(); ++it)
+    if (it->first == device_timestamp_ns) return it->second;
+  return std::nullopt;
+}
 
 }  // namespace msmcal::twin

@@ -72,6 +72,13 @@ struct AppliedDrive {
   sim::DriveMode mode = sim::DriveMode::kOff;
 };
 
+// When a camera frame was filled, on the twin's clock, and the state generation it shows.
+struct FrameStamp {
+  int64_t exposure_start_ns = 0;
+  int64_t exposure_end_ns = 0;
+  uint64_t generation = 0;
+};
+
 class PhysicalTwin {
  public:
   // Starts every instrument and the hands server. Throws std::invalid_argument (Validate) or
@@ -109,6 +116,10 @@ class PhysicalTwin {
   // What a frame whose exposure ends at `end_ns` shows (state as of now).
   sim::Scene SceneAt(int64_t end_ns) const;
   int64_t NowNs() const;
+  // The stamp of a recent frame (the last 256) by its GigE Vision device timestamp (what
+  // camera::FrameInfo::device_timestamp_ns carries), for in-process sessions and tests that
+  // discard frames exposed before a change.
+  std::optional<FrameStamp> FrameStampFor(int64_t device_timestamp_ns) const;
 
  private:
   struct Impl;
