@@ -181,7 +181,11 @@ HandsReply SendHandsRequest(const std::string& socket_path, const std::string& r
   if (::connect(fd, reinterpret_cast<sockaddr*>(&addr), sizeof(addr)) != 0)
     throw std::runtime_error(who + ": cannot connect (is `msmcal mock rig` running?): " +
                              std::strerror(errno));
-  const std::string line = request_line + "\n";
+  // One line on the wire: a raw newline can only be JSON whitespace (JSON strings escape theirs).
+  std::string line = request_line;
+  for (char& c : line)
+    if (c == '\n' || c == '\r') c = ' ';
+  line += '\n';
   size_t sent = 0;
   while (sent < line.size()) {
     const ssize_t n = ::send(fd, line.data() + sent, line.size() - sent, MSG_NOSIGNAL);

@@ -61,7 +61,7 @@ struct HandsReply {
 HandsReply ParseHandsReply(const std::string& json_text);  // throws std::invalid_argument
 std::string FormatHandsReply(const HandsReply& reply);
 
-// Client side: connects to the twin's socket, sends `request_line`, waits up to timeout_ms for
+// Client side: connects to the twin's socket, sends `request_line` (newlines in it become spaces), waits up to timeout_ms for
 // the answer. Throws std::runtime_error naming the socket when the twin cannot be reached or
 // does not answer in time.
 HandsReply SendHandsRequest(const std::string& socket_path, const std::string& request_line,
