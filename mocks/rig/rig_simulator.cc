@@ -7,6 +7,8 @@
 #include <numeric>
 #include <stdexcept>
 
+#include "processing/plan/frame_design.h"
+
 namespace msmcal::sim {
 namespace {
 
@@ -443,11 +445,8 @@ void RigSimulator::BuildFrames(const std::vector<double>* trigger_times_s) {
   // Step 1: per pose a frame with all beams and a background frame with none; where two of the
   // pose's dots would lie closer than kMinStep1SeparationPx, one frame per beam instead of the
   // all-beams frame. Identification frames (one per beam) at the last pose.
-  auto file = [](const char* step, size_t i) {
-    char buf[64];
-    std::snprintf(buf, sizeof(buf), "%s/%04zu.png", step, i);
-    return std::string(buf);
-  };
+  // (processing/plan: the frame list; here the geometry says which poses are close.)
+  std::vector<bool> close_pose;
   for (int l = 0; l < s1.poses; ++l) {
     check_board("sliding board pose " + std::to_string(l) + " in C1", options_.sliding_board,
                 c1_from_sliding(l));
@@ -465,28 +464,17 @@ void RigSimulator::BuildFrames(const std::vector<double>* trigger_times_s) {
     for (size_t a = 0; a < scene.labels.size(); ++a)
       for (size_t b = a + 1; b < scene.labels.size(); ++b)
         close |= (scene.labels[a].pixel - scene.labels[b].pixel).norm() < kMinStep1SeparationPx;
-    const bool identification = s1.identification_frames && l == s1.poses - 1;
-    if (close) {
-      if (!identification)
-        for (int id : all_beams) step1_.push_back({file("step1", step1_.size()), l, {id}});
-    } else {
-      step1_.push_back({file("step1", step1_.size()), l, all_beams});
-    }
-    // Close dots reach into each other's windows, so their single-beam frames do not show every
-    // window pixel dot-free: those poses keep the background frame.
-    if (s1.background_frames && (!identification || close))
-      step1_.push_back({file("step1", step1_.size()), l, {}});
+    close_pose.push_back(close);
   }
-  if (s1.identification_frames) {
-    for (int id : all_beams) step1_.push_back({file("step1", step1_.size()), s1.poses - 1, {id}});
-  }
-  if (s1.exposures > 1) {  // each frame K times in a row
-    std::vector<dataset::Step1Frame> repeated;
-    for (const auto& f : step1_)
-      for (int k = 0; k < s1.exposures; ++k)
-        repeated.push_back({file("step1", repeated.size()), f.pose, f.beams});
-    step1_ = std::move(repeated);
-  }
+  plan::Step1FrameOptions fo;
+  fo.poses = s1.poses;
+  fo.beams = beams;
+  fo.identification_frames = s1.identification_frames;
+  fo.background_frames = s1.background_frames;
+  fo.exposures = std::max(1, s1.exposures);
+  fo.close_pose = close_pose;
+  step1_ = plan::DesignStep1Frames(fo);
+  auto file = [](const char* step, size_t i) { return plan::FrameFile(step, i); };
 
   // Triggers.
   const std::vector<double> times =

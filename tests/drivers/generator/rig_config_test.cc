@@ -30,7 +30,7 @@ TEST(RigConfigTest, ExampleLoadsAndValidates) {
   EXPECT_EQ(c.Validate(), "");
   EXPECT_EQ(c.unit1.name, "unit1");
   EXPECT_EQ(c.unit1.limits[0].role, "fast_coil");
-  EXPECT_DOUBLE_EQ(c.signals.fast.frequency_hz, 1230.0);
+  EXPECT_DOUBLE_EQ(c.signals.fast.frequency_hz, 205.0);  // the twin's mirror (config/sim.yaml)
   EXPECT_TRUE(std::isinf(c.signals.laser.load_ohm));
   EXPECT_DOUBLE_EQ(c.unit2.limits[0].max_duty, 0.01);
 }
@@ -50,7 +50,7 @@ TEST(RigConfigTest, UnknownKeyNamesFileLineAndField) {
 }
 
 TEST(RigConfigTest, BadNumberNamesField) {
-  const std::string text = Replace(ExampleText(), "frequency_hz: 1230,", "frequency_hz: fast,");
+  const std::string text = Replace(ExampleText(), "frequency_hz: 205,", "frequency_hz: fast,");
   try {
     ParseRigGeneratorConfig(text, "rig.yaml");
     FAIL();
@@ -67,11 +67,11 @@ TEST(RigConfigTest, DriveOutsideLimitsIsRefusedByValidate) {
       Replace(ExampleText(), "amplitude_vpp: 2.0", "amplitude_vpp: 10.0"), "rig.yaml");
   EXPECT_EQ(c.Validate(),
             "generators.unit1.ch1 (fast_coil): amplitude_vpp = 10 outside the limit [0, 4] Vpp");
-  c = ParseRigGeneratorConfig(Replace(ExampleText(), "frequency_hz: 1230", "frequency_hz: 1500"),
+  c = ParseRigGeneratorConfig(Replace(ExampleText(), "frequency_hz: 205", "frequency_hz: 300"),
                               "rig.yaml");
   EXPECT_EQ(c.Validate(),
-            "generators.unit1.ch1 (fast_coil): frequency_hz = 1500 outside the window [1100, "
-            "1350] Hz");
+            "generators.unit1.ch1 (fast_coil): frequency_hz = 300 outside the window [195, "
+            "215] Hz");
   c = ParseRigGeneratorConfig(Replace(ExampleText(), "port: 15025", "port: 0"), "rig.yaml");
   EXPECT_EQ(c.Validate(), "generators.unit1.port = 0: must be in [1, 65535]");
   c = ParseRigGeneratorConfig(
@@ -109,7 +109,7 @@ TEST(RigConfigTest, LimitsBeyondThe33520bAreRefused) {
             "generators.unit1.channels.1.limits.max_vpp = 12: above what the 33520B delivers "
             "into 50 ohm (10 Vpp)");
   c = ParseRigGeneratorConfig(
-      Replace(ExampleText(), "max_frequency_hz: 1350", "max_frequency_hz: 4e7"), "rig.yaml");
+      Replace(ExampleText(), "max_frequency_hz: 215", "max_frequency_hz: 4e7"), "rig.yaml");
   EXPECT_NE(c.Validate().find("generators.unit1.channels.1.limits.max_frequency_hz = 40000000"),
             std::string::npos)
       << c.Validate();

@@ -159,7 +159,7 @@ INSTANTIATE_TEST_SUITE_P(
 
 TEST(RigGeneratorsTest, DriverRefusesLimitEvenIfConfigWasNotValidated) {
   Rig r;
-  r.config.signals.slow.amplitude_vpp = 3.5;  // unit1.ch2 max_vpp 3.0
+  r.config.signals.slow.amplitude_vpp = 5.5;  // unit1.ch2 max_vpp 5.0
   r.Open();
   try {
     r.rig->Apply(PlanRigSignals(r.config.signals));
@@ -168,7 +168,7 @@ TEST(RigGeneratorsTest, DriverRefusesLimitEvenIfConfigWasNotValidated) {
     EXPECT_EQ(e.kind(), GeneratorError::Kind::kLimit);
     EXPECT_STREQ(
         e.what(),
-        "refused: unit1.ch2 (slow_coil): amplitude_vpp = 3.5 outside the limit [0, 3] Vpp");
+        "refused: unit1.ch2 (slow_coil): amplitude_vpp = 5.5 outside the limit [0, 5] Vpp");
   }
   EXPECT_TRUE(r.AllOff());
 }
