@@ -177,10 +177,12 @@ geometry::Rigid3d RigSimulator::SlidingPose(int l, std::optional<double> distanc
   r.col(0) = x;
   r.col(1) = y;
   r.col(2) = z;
+  // The design alternates the tilt's sign per pose; a given tilt is the signed one.
   const double sign = (l % 2 == 0) ? 1.0 : -1.0;
-  const double tilt_rad = tilt_deg.value_or(s1.tilt_deg) * kDegToRad;
+  const double signed_tilt_rad = (tilt_deg ? *tilt_deg : sign * s1.tilt_deg) * kDegToRad;
+  const double tilt_rad = std::abs(signed_tilt_rad);
   const int m = ((l % 3) + 3) % 3;
-  r = Eigen::AngleAxisd(sign * tilt_rad, y).toRotationMatrix() *
+  r = Eigen::AngleAxisd(signed_tilt_rad, y).toRotationMatrix() *
       Eigen::AngleAxisd(0.5 * tilt_rad * (m - 1), x).toRotationMatrix() * r;
   const Eigen::Vector3d origin =
       centre - r * Eigen::Vector3d(0.5 * (sb.cols - 1) * sb.square_mm,

@@ -131,7 +131,8 @@ class RigSimulator {
   Scene StateScene(const RigState& state, const std::vector<PulseAtPose>& pulses) const;
   // world_from_sliding of step 1 pose `pose` (0-based, any index: the design's spacing
   // continues), optionally placed at distance_mm from X_O along the central incident beam and
-  // tilted by tilt_deg (sign alternating per pose as in the design).
+  // tilted by tilt_deg (signed, as sessions/rig's SlidingPlate::TiltDeg gives it; by default the
+  // design's tilt with its sign alternating per pose).
   geometry::Rigid3d SlidingPose(int pose, std::optional<double> distance_mm = std::nullopt,
                                 std::optional<double> tilt_deg = std::nullopt) const;
 

@@ -1,21 +1,20 @@
 #include "simulation/twin/twin_rig_config.h"
 
-#include <yaml-cpp/yaml.h>
-
 #include <cmath>
 #include <stdexcept>
-
-#include "drivers/generator/rig_config.h"
-#include "drivers/hall_mcu/hall_mcu_config.h"
 
 namespace msmcal::twin {
 
 PhysicalTwinOptions TwinOptionsFromRigFile(const std::filesystem::path& rig_file,
                                            const sim::SimOptions& world) {
-  const std::string origin = rig_file.string();
+  return TwinOptionsFromRig(rig::LoadRigFile(rig_file), world);
+}
+
+PhysicalTwinOptions TwinOptionsFromRig(const rig::RigFile& r, const sim::SimOptions& world) {
+  const std::string& origin = r.origin;
   PhysicalTwinOptions o;
   o.sim = world;
-  const gen::RigGeneratorConfig g = gen::LoadRigGeneratorConfig(origin);
+  const gen::RigGeneratorConfig& g = r.generators;
   for (const auto* unit : {&g.unit1, &g.unit2}) {
     if (unit->link.host != "127.0.0.1" && unit->link.host != "localhost")
       throw std::runtime_error(origin + ": generators." + unit->name + ".host = " +
@@ -31,60 +30,46 @@ PhysicalTwinOptions TwinOptionsFromRigFile(const std::filesystem::path& rig_file
   drive(g.signals.fast, &o.sim.mirror.fast);
   drive(g.signals.slow, &o.sim.mirror.slow);
 
-  YAML::Node doc;
-  try {
-    doc = YAML::LoadFile(origin);
-  } catch (const YAML::Exception& e) {
-    throw std::runtime_error(origin + ":" + std::to_string(e.mark.line + 1) + ": " + e.msg);
-  }
-  auto field = [&](const YAML::Node& n, const std::string& name) {
-    return origin + ":" + std::to_string(n.Mark().line + 1) + ": " + name;
-  };
-  try {
-    if (const YAML::Node cam = doc["camera"]) {
-      if (cam["kind"] && cam["kind"].as<std::string>() != "gige")
-        throw std::runtime_error(field(cam["kind"], "camera.kind") + " = " +
-                                 cam["kind"].as<std::string>() +
-                                 ": the twin serves a GigE Vision camera only");
-      if (cam["address"]) o.camera_address = cam["address"].as<std::string>();
-      if (cam["frame_rate_hz"]) o.camera_frame_rate_hz = cam["frame_rate_hz"].as<double>();
-      auto& c = o.sim.camera;
-      const int w0 = c.width;
-      if (cam["width"]) c.width = cam["width"].as<int>();
-      if (cam["height"]) c.height = cam["height"].as<int>();
-      // A different sensor size keeps the field of view unless the intrinsics are given.
-      const double scale = static_cast<double>(c.width) / w0;
-      c.fx = cam["fx"] ? cam["fx"].as<double>() : c.fx * scale;
-      c.fy = cam["fy"] ? cam["fy"].as<double>() : c.fy * scale;
-      c.cx = cam["cx"] ? cam["cx"].as<double>() : 0.5 * (c.width - 1);
-      c.cy = cam["cy"] ? cam["cy"].as<double>() : 0.5 * (c.height - 1);
+  if (r.camera.kind != rig::CameraKind::kGige)
+    throw std::runtime_error(origin + ": camera.kind = " + rig::ToString(r.camera.kind) +
+                             ": the twin serves a GigE Vision camera only");
+  o.camera_address = r.camera.address;
+  o.camera_frame_rate_hz = r.camera.frame_rate_hz;
+  const geometry::CameraModel& m = r.camera.model;
+  auto& c = o.sim.camera;
+  c.width = m.width;
+  c.height = m.height;
+  c.fx = m.fx;
+  c.fy = m.fy;
+  c.cx = m.cx;
+  c.cy = m.cy;
+  c.distortion = m.distortion;
+
+  o.sim.world_board = {r.world_board.cols, r.world_board.rows, r.world_board.square_mm};
+  o.sim.sliding_board = {r.sliding_board.cols, r.sliding_board.rows, r.sliding_board.square_mm};
+
+  auto& b = o.sim.beams;
+  if (r.beams.count != b.count) {
+    // More or fewer beams than the world's: fan positions and mirror offsets spread evenly.
+    const int n = r.beams.count;
+    b.fan_fractions.clear();
+    b.offsets_mm.clear();
+    for (int k = 0; k < n; ++k) {
+      b.fan_fractions.push_back(-0.5 + static_cast<double>(k) / (n - 1));
+      b.offsets_mm.push_back({1.2 * std::cos(2.1 * k), 1.2 * std::sin(2.1 * k)});
     }
-    if (const YAML::Node beams = doc["beams"]) {
-      if (beams["count"]) {
-        const int n = beams["count"].as<int>();
-        auto& b = o.sim.beams;
-        if (n != b.count) {
-          // More or fewer beams than the world's: fan fractions and offsets spread evenly.
-          b.fan_fractions.clear();
-          b.offsets_mm.clear();
-          for (int k = 0; k < n; ++k) {
-            b.fan_fractions.push_back(n == 1 ? 0.0 : -0.5 + static_cast<double>(k) / (n - 1));
-            b.offsets_mm.push_back({0.8 * std::cos(2.1 * k), 0.8 * std::sin(2.1 * k)});
-          }
-          b.count = n;
-        }
-      }
-      if (beams["validate_ids"]) o.sim.beams.validate_ids = beams["validate_ids"].as<std::vector<int>>();
-    }
-  } catch (const YAML::Exception& e) {
-    throw std::runtime_error(origin + ":" + std::to_string(e.mark.line + 1) + ": " + e.msg);
+    b.count = n;
   }
-  if (doc["hall_mcu"]) {
-    const hall_mcu::HallMcuConfig h = hall_mcu::LoadHallMcuConfig(rig_file);
-    o.hall_link_path = h.link.device;
-    o.hall_rate_hz = h.rate_hz;
-    o.sim.hall.sample_rate_hz = h.rate_hz;
-  }
+  b.validate_ids = r.beams.validate_ids;
+
+  o.sim.step1.poses = r.sliding_plate.poses;
+  o.sim.step1.nearest_mm = r.sliding_plate.nearest_mm;
+  o.sim.step1.farthest_mm = r.sliding_plate.farthest_mm;
+  o.sim.step1.tilt_deg = r.sliding_plate.tilt_deg;
+
+  o.hall_link_path = r.hall_mcu.link.device;
+  o.hall_rate_hz = r.hall_mcu.rate_hz;
+  o.sim.hall.sample_rate_hz = r.hall_mcu.rate_hz;
   if (std::string e = o.sim.Validate(); !e.empty())
     throw std::runtime_error(origin + ": the twin's world with this rig file: " + e);
   return o;
