@@ -11,6 +11,7 @@
 #include <atomic>
 #include <cerrno>
 #include <chrono>
+#include <condition_variable>
 #include <cmath>
 #include <cstring>
 #include <deque>
@@ -118,6 +119,21 @@ struct PhysicalTwin::Impl {
 
   std::function<HandsReply(const std::string&)> handler;
   class HallSource;
+
+  // Samples what the generators play every 20 ms, so that the truth knows the last drive and
+  // trigger table applied even when no frame or reading was taken while they ran.
+  std::thread watch_thread;
+  std::mutex watch_mu;
+  std::condition_variable watch_cv;
+  bool watch_stop = false;
+  void Watch() {
+    std::unique_lock lock(watch_mu);
+    while (!watch_cv.wait_for(lock, std::chrono::milliseconds(20), [&] { return watch_stop; })) {
+      lock.unlock();
+      NoteApplied(*CurrentPhysics(), CurrentLaser());
+      lock.lock();
+    }
+  }
 
   int listen_fd = -1;
   int stop_pipe[2] = {-1, -1};
@@ -536,10 +552,20 @@ PhysicalTwin::PhysicalTwin(const PhysicalTwinOptions& options) : impl_(std::make
       throw std::runtime_error(std::string("hands socket: pipe: ") + std::strerror(errno));
     m.hands_thread = std::thread([impl = impl_.get()] { impl->ServeHands(); });
   }
+  // Last: nothing throws after a thread of ours runs (the destructor joins them).
+  m.watch_thread = std::thread([impl = impl_.get()] { impl->Watch(); });
 }
 
 PhysicalTwin::~PhysicalTwin() {
   Impl& m = *impl_;
+  if (m.watch_thread.joinable()) {
+    {
+      std::lock_guard lock(m.watch_mu);
+      m.watch_stop = true;
+    }
+    m.watch_cv.notify_all();
+    m.watch_thread.join();
+  }
   if (m.hands_thread.joinable()) {
     const char c = 'x';
     (void)!::write(m.stop_pipe[1], &c, 1);
