@@ -1,5 +1,6 @@
 // The digital twin behind the real wires (docs/twin.md):
 //   msmcal mock rig --rig RIG.yaml --hands SOCKET [--world sim.yaml] [--seed N] [--exposure S]
+//                   [--hall-link PATH]
 //     serves both generators, the camera and the Hall MCU of RIG.yaml from one simulated world
 //     until SIGINT/SIGTERM; the world's physical state changes only through SOCKET.
 //   msmcal mock hands --socket SOCKET [--truth-out DIR] [--timeout-ms MS]
@@ -36,6 +37,7 @@ struct RigArgs {
   std::string world;
   int64_t seed = -1;
   double exposure_s = 0.5;
+  std::string hall_link;
 };
 
 struct HandsArgs {
@@ -71,9 +73,10 @@ void ServeRig(const RigArgs& args) {
   if (args.seed >= 0) o.sim.seed = static_cast<uint64_t>(args.seed);
   o.hands_socket = args.hands;
   o.exposure_s = args.exposure_s;
+  if (!args.hall_link.empty()) o.hall_link_path = args.hall_link;
   twin::PhysicalTwin rig(o);
-  std::cout << "twin: generators on 127.0.0.1:" << rig.generator_port(1) << " and 127.0.0.1:"
-            << rig.generator_port(2) << "\n"
+  std::cout << "twin: generators on 127.0.0.1:" << rig.generator_port(1)
+            << " and 127.0.0.1:" << rig.generator_port(2) << "\n"
             << "twin: camera " << o.sim.camera.width << "x" << o.sim.camera.height << " on "
             << o.camera_address << "\n"
             << "twin: Hall MCU on " << rig.hall_device()
@@ -125,8 +128,7 @@ void AddMockRigCommands(CLI::App& app) {
       "Serve the digital twin: both generators, the camera and the Hall MCU of the rig file "
       "from one simulated world, until SIGINT/SIGTERM (docs/twin.md)");
   rig->add_option("--rig", rig_args->rig, "Rig file (YAML)")->required()->check(CLI::ExistingFile);
-  rig->add_option("--hands", rig_args->hands, "Unix socket the twin's hands listen on")
-      ->required();
+  rig->add_option("--hands", rig_args->hands, "Unix socket the twin's hands listen on")->required();
   rig->add_option("--world", rig_args->world,
                   "The world's simulation config (default: built-in = config/sim.yaml)")
       ->check(CLI::ExistingFile);
@@ -134,6 +136,9 @@ void AddMockRigCommands(CLI::App& app) {
   rig->add_option("--exposure", rig_args->exposure_s,
                   "Camera integration window per frame, s (>= one pattern period shows every "
                   "pulse)");
+  rig->add_option("--hall-link", rig_args->hall_link,
+                  "Where the Hall MCU's pty is symlinked (default: the rig file's "
+                  "hall_mcu.device)");
   rig->callback([rig_args] { ServeRig(*rig_args); });
 
   auto hands_args = std::make_shared<HandsArgs>();

@@ -300,7 +300,8 @@ Scene RigSimulator::FrameScene(const dataset::Step2Frame& frame) const {
   return Step2Scene(mode, frame.triggers, frame.beams);
 }
 
-Scene RigSimulator::StateScene(const RigState& state, const std::vector<PulseAtPose>& pulses) const {
+Scene RigSimulator::StateScene(const RigState& state,
+                               const std::vector<PulseAtPose>& pulses) const {
   Scene scene;
   scene.camera = camera_;
   const geometry::Rigid3d& cam_from_world = state.camera == 1 ? c1_from_world_ : c2_from_world_;
@@ -479,8 +480,7 @@ void RigSimulator::BuildFrames(const std::vector<double>* trigger_times_s) {
   auto file = [](const char* step, size_t i) { return plan::FrameFile(step, i); };
 
   // Triggers.
-  const std::vector<double> times =
-      trigger_times_s ? *trigger_times_s : SimpleTriggerTimes(*this);
+  const std::vector<double> times = trigger_times_s ? *trigger_times_s : SimpleTriggerTimes(*this);
   for (size_t j = 0; j < times.size(); ++j) triggers_.push_back({static_cast<int>(j), times[j]});
   if (!trigger_times_s && triggers_.size() < 3) {
     throw std::runtime_error("only " + std::to_string(triggers_.size()) +

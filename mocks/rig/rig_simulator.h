@@ -63,10 +63,10 @@ std::vector<double> SimpleTriggerTimes(const RigSimulator& sim);
 // The physical set-up of the rig at one instant, for scenes that follow from the rig's state
 // rather than from the simulator's own plan (the digital twin, simulation/twin/physical_twin.h).
 struct RigState {
-  int camera = 2;                    // 1: the camera at C1, 2: at C2
-  bool msm_mounted = true;           // false: the beams travel on past the mirror's place
+  int camera = 2;           // 1: the camera at C1, 2: at C2
+  bool msm_mounted = true;  // false: the beams travel on past the mirror's place
   std::optional<geometry::Rigid3d> world_from_sliding;  // the sliding plate, when mounted
-  std::vector<int> unblocked_beams;  // beam ids (1-based) that reach the rig
+  std::vector<int> unblocked_beams;                     // beam ids (1-based) that reach the rig
 };
 
 // One laser pulse that fired during an exposure: its trigger index (-1: none) and the mirror's

@@ -179,8 +179,8 @@ HandsReply SendHandsRequest(const std::string& socket_path, const std::string& r
     ~Closer() { ::close(fd); }
   } closer{fd};
   if (::connect(fd, reinterpret_cast<sockaddr*>(&addr), sizeof(addr)) != 0)
-    throw std::runtime_error(who + ": cannot connect (is `msmcal mock rig` running?): " +
-                             std::strerror(errno));
+    throw std::runtime_error(
+        who + ": cannot connect (is `msmcal mock rig` running?): " + std::strerror(errno));
   // One line on the wire: a raw newline can only be JSON whitespace (JSON strings escape theirs).
   std::string line = request_line;
   for (char& c : line)
@@ -199,8 +199,8 @@ HandsReply SendHandsRequest(const std::string& socket_path, const std::string& r
     const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(
                           deadline - std::chrono::steady_clock::now())
                           .count();
-    if (left <= 0) throw std::runtime_error(who + ": no answer within " +
-                                            std::to_string(timeout_ms) + " ms");
+    if (left <= 0)
+      throw std::runtime_error(who + ": no answer within " + std::to_string(timeout_ms) + " ms");
     pollfd p{fd, POLLIN, 0};
     const int pr = ::poll(&p, 1, static_cast<int>(left));
     if (pr < 0 && errno == EINTR) continue;
@@ -208,7 +208,8 @@ HandsReply SendHandsRequest(const std::string& socket_path, const std::string& r
     char buf[4096];
     const ssize_t n = ::recv(fd, buf, sizeof(buf), 0);
     if (n < 0 && errno == EINTR) continue;
-    if (n <= 0) throw std::runtime_error(who + ": the twin closed the connection without answering");
+    if (n <= 0)
+      throw std::runtime_error(who + ": the twin closed the connection without answering");
     reply.append(buf, static_cast<size_t>(n));
   }
   return ParseHandsReply(reply.substr(0, reply.find('\n')));

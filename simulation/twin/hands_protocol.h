@@ -12,7 +12,8 @@
 //
 // Unknown fields are ignored (block, of, for, drive, changes, text are informative); a field
 // that is absent leaves that part of the state as it is; a field of the wrong type is refused
-// with a message naming it. Answers: {"ok": true, "generation": N} or {"ok": false, "error": "..."}.
+// with a message naming it. Answers: {"ok": true, "generation": N} or {"ok": false, "error":
+// "..."}.
 
 #include <cstdint>
 #include <optional>
@@ -42,8 +43,8 @@ struct TwinSetup {
 struct HandsRequest {
   enum class Kind { kSetup, kTruthRequest };
   Kind kind = Kind::kSetup;
-  TwinSetup setup;      // kSetup
-  std::string dir;      // kTruthRequest: absolute folder the truth is written into
+  TwinSetup setup;  // kSetup
+  std::string dir;  // kTruthRequest: absolute folder the truth is written into
 };
 
 // Parses one request. Throws std::invalid_argument naming the field (e.g. "sliding_plate.pose:
@@ -61,9 +62,9 @@ struct HandsReply {
 HandsReply ParseHandsReply(const std::string& json_text);  // throws std::invalid_argument
 std::string FormatHandsReply(const HandsReply& reply);
 
-// Client side: connects to the twin's socket, sends `request_line` (newlines in it become spaces), waits up to timeout_ms for
-// the answer. Throws std::runtime_error naming the socket when the twin cannot be reached or
-// does not answer in time.
+// Client side: connects to the twin's socket, sends `request_line` (newlines in it become spaces),
+// waits up to timeout_ms for the answer. Throws std::runtime_error naming the socket when the twin
+// cannot be reached or does not answer in time.
 HandsReply SendHandsRequest(const std::string& socket_path, const std::string& request_line,
                             int timeout_ms);
 

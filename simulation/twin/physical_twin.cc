@@ -1,18 +1,18 @@
 #include "simulation/twin/physical_twin.h"
 
+#include <fcntl.h>
 #include <poll.h>
 #include <sys/socket.h>
 #include <sys/stat.h>
 #include <sys/un.h>
-#include <fcntl.h>
 #include <unistd.h>
 
 #include <algorithm>
 #include <atomic>
 #include <cerrno>
 #include <chrono>
-#include <condition_variable>
 #include <cmath>
+#include <condition_variable>
 #include <cstring>
 #include <deque>
 #include <mutex>
@@ -66,8 +66,19 @@ struct Physics {
   AppliedDrive drive;
   std::unique_ptr<sim::MirrorMotion> motion;
   std::unique_ptr<sim::HallModel> hall;
+  int64_t period_ns = 0;  // the drives' common period when a whole number of ns, else 0
+  // Generator time of a twin-clock instant, reduced modulo the drives' period in integers first
+  // (hours of running do not cost the pose its precision).
+  double GeneratorTimeS(int64_t t_ns) const {
+    int64_t dt = t_ns - drive.t0_ns;
+    if (period_ns > 0) {
+      dt %= period_ns;
+      if (dt < 0) dt += period_ns;
+    }
+    return static_cast<double>(dt) * 1e-9;
+  }
   geometry::MirrorPose PoseAtNs(int64_t t_ns) const {
-    return motion->PoseAt(static_cast<double>(t_ns - drive.t0_ns) * 1e-9, drive.mode);
+    return motion->PoseAt(GeneratorTimeS(t_ns), drive.mode);
   }
 };
 
@@ -157,7 +168,8 @@ struct PhysicalTwin::Impl {
       a->frequency_hz = c.frequency_hz;
       a->amplitude_vpp = c.amplitude_vpp;
       // Phase at generator time 0 (the channels may have started at different instants).
-      const double shift = 360.0 * c.frequency_hz * static_cast<double>(d.t0_ns - c.start_time_ns) * 1e-9;
+      const double shift =
+          360.0 * c.frequency_hz * static_cast<double>(d.t0_ns - c.start_time_ns) * 1e-9;
       a->phase_deg = std::fmod(StartPhaseDeg(c) + shift, 360.0);
     };
     axis(f, &d.mirror.fast, d.fast_on);
@@ -189,6 +201,9 @@ struct PhysicalTwin::Impl {
       sim::SimOptions o = options.sim;
       o.mirror = d.mirror;
       p->hall = std::make_unique<sim::HallModel>(o);
+      const double period_ns = o.PatternPeriodS() * 1e9;
+      if (period_ns >= 1 && std::abs(period_ns - std::round(period_ns)) < 1e-3)
+        p->period_ns = std::llround(period_ns);
       physics = std::move(p);
     }
     return physics;
@@ -305,10 +320,10 @@ struct PhysicalTwin::Impl {
     }
     std::lock_guard lock(render_mu);
     // The same scene renders to the same image but for its noise: re-render only on change.
-    bool same = have_image && scene.boards.size() == last_boards &&
-                scene.dots.size() == last_dots.size();
+    bool same =
+        have_image && scene.boards.size() == last_boards && scene.dots.size() == last_dots.size();
     for (size_t i = 0; same && i < scene.dots.size(); ++i)
-      same = (scene.dots[i].p_in_cam - last_dots[i].p_in_cam).norm() < 1e-9;
+      same = (scene.dots[i].p_in_cam - last_dots[i].p_in_cam).norm() < 1e-6;  // mm
     if (!same) {
       last_image = sim->RenderScene(scene, frame_index);
       last_dots = scene.dots;
@@ -326,9 +341,9 @@ struct PhysicalTwin::Impl {
   }
   int64_t TwinNs(int64_t mcu_us) const {
     const double rate = 1.0 + options.sim.hall.mcu_rate_error_ppm * 1e-6;
-    return origin_ns + static_cast<int64_t>(std::llround(
-                           static_cast<double>(mcu_us - options.sim.hall.mcu_offset_us) * 1e3 /
-                           rate));
+    return origin_ns +
+           static_cast<int64_t>(std::llround(
+               static_cast<double>(mcu_us - options.sim.hall.mcu_offset_us) * 1e3 / rate));
   }
 
   // Field (uT, sensor axes) at twin-clock instant t_ns, noise-free.
@@ -340,8 +355,7 @@ struct PhysicalTwin::Impl {
       magnet = state.msm_mounted && state.top_frame_mounted;
     }
     const auto& h = options.sim.hall;
-    const double t_s = static_cast<double>(t_ns - p->drive.t0_ns) * 1e-9;
-    Eigen::Vector3d b = p->hall->CoilFieldUT(t_s) +
+    Eigen::Vector3d b = p->hall->CoilFieldUT(p->GeneratorTimeS(t_ns)) +
                         Eigen::Vector3d(h.earth_uT[0], h.earth_uT[1], h.earth_uT[2]);
     if (magnet)
       b += p->hall->MagnetFieldUT(p->PoseAtNs(t_ns));
@@ -471,7 +485,6 @@ void PhysicalTwin::Impl::HandleConnection(int fd) {
   }
 }
 
-
 PhysicalTwin::PhysicalTwin(const PhysicalTwinOptions& options) : impl_(std::make_unique<Impl>()) {
   if (std::string e = options.Validate(); !e.empty()) throw std::invalid_argument(e);
   Impl& m = *impl_;
@@ -506,8 +519,8 @@ PhysicalTwin::PhysicalTwin(const PhysicalTwinOptions& options) : impl_(std::make
     Impl* impl = impl_.get();
     m.camera = sim::MockGvCamera::Start(
         cam,
-        [impl](uint8_t* data, int width, int height, sim::SimPixelFormat fmt,
-               int64_t timestamp_ns, uint64_t frame_index) {
+        [impl](uint8_t* data, int width, int height, sim::SimPixelFormat fmt, int64_t timestamp_ns,
+               uint64_t frame_index) {
           impl->Fill(data, width, height, fmt, timestamp_ns, frame_index);
         },
         &error);
@@ -537,7 +550,7 @@ PhysicalTwin::PhysicalTwin(const PhysicalTwinOptions& options) : impl_(std::make
     if (path.size() >= sizeof(addr.sun_path))
       throw std::runtime_error("hands socket " + path + ": path too long for a Unix socket");
     std::memcpy(addr.sun_path, path.c_str(), path.size() + 1);
-    struct stat st{};
+    struct stat st {};
     if (::lstat(path.c_str(), &st) == 0) {
       if (!S_ISSOCK(st.st_mode))
         throw std::runtime_error("hands socket " + path + ": exists and is not a socket");

@@ -50,7 +50,7 @@ struct PhysicalTwinOptions {
   double exposure_s = 0.5;
   std::string hall_link_path;  // symlink to the MCU's pty ("" : none; see hall_device())
   uint16_t hall_rate_hz = 1000;
-  std::string hands_socket;  // Unix socket path served for the hands ("" : none)
+  std::string hands_socket;           // Unix socket path served for the hands ("" : none)
   std::function<int64_t()> clock_ns;  // nanoseconds, monotonic; default: steady_clock
   std::string Validate() const;       // empty when valid; names field, value, constraint
 };

@@ -67,8 +67,7 @@ TEST(HandsProtocol, RefusesMalformedSetupsNamingTheField) {
   EXPECT_NE(ParseError(R"({"kind": "setup"})").find("msmcal_setup: missing"), std::string::npos);
   EXPECT_NE(ParseError(R"({"msmcal_setup": 2, "kind": "setup"})").find("msmcal_setup"),
             std::string::npos);
-  EXPECT_NE(ParseError(R"({"msmcal_setup": 1, "kind": "dance"})").find("kind:"),
-            std::string::npos);
+  EXPECT_NE(ParseError(R"({"msmcal_setup": 1, "kind": "dance"})").find("kind:"), std::string::npos);
   EXPECT_NE(ParseError(R"({"msmcal_setup": 1, "kind": "setup", "camera": "C3"})").find("camera:"),
             std::string::npos);
   EXPECT_NE(ParseError(R"({"msmcal_setup": 1, "kind": "setup", "msm_mounted": "yes"})")
@@ -89,9 +88,9 @@ TEST(HandsProtocol, RefusesMalformedSetupsNamingTheField) {
   EXPECT_NE(ParseError(R"({"msmcal_setup": 1, "kind": "setup", "beams_unblocked": [0]})")
                 .find("beams_unblocked[0]: expected a beam id >= 1"),
             std::string::npos);
-  EXPECT_NE(ParseError(R"({"msmcal_setup": 1, "kind": "setup", "for": {"step": 1}})")
-                .find("for.step"),
-            std::string::npos);
+  EXPECT_NE(
+      ParseError(R"({"msmcal_setup": 1, "kind": "setup", "for": {"step": 1}})").find("for.step"),
+      std::string::npos);
 }
 
 class TwinHands : public ::testing::Test {

@@ -96,7 +96,8 @@ class PhysicalTwinTest : public ::testing::Test {
   void ApplySignals(const std::vector<double>& times) {
     dataset::Recording plan;
     plan.drive.pattern_period_s = ref_->pattern_period_s();
-    for (size_t j = 0; j < times.size(); ++j) plan.triggers.push_back({static_cast<int>(j), times[j]});
+    for (size_t j = 0; j < times.size(); ++j)
+      plan.triggers.push_back({static_cast<int>(j), times[j]});
     const gen::RigSignalPlan p = orchestrator::PlanSessionSignals(signals_config_, plan);
     gen::RigGenerators rig(*master_, *slave_);
     rig.Apply(p);
@@ -117,7 +118,8 @@ class PhysicalTwinTest : public ::testing::Test {
 
   // Where the simulator puts beam `id`'s dot for a pulse at generator time t (scan), in C2.
   Eigen::Vector2d TruthPixel(int id, double t) const {
-    const auto p = ref_->ReflectedDotInWorld(id, ref_->MirrorPlaneInWorld(t, sim::DriveMode::kScan));
+    const auto p =
+        ref_->ReflectedDotInWorld(id, ref_->MirrorPlaneInWorld(t, sim::DriveMode::kScan));
     EXPECT_TRUE(p);
     return *ref_->camera().Project(ref_->c2_from_world() * *p);
   }
