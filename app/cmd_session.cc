@@ -29,6 +29,8 @@
 #include "sessions/interchange/interchange_io.h"
 #include "sessions/orchestrator/orchestrator.h"
 #include "sessions/orchestrator/report.h"
+#include "sessions/plan/session_plan.h"
+#include "sessions/rig/rig_file.h"
 #include "simulation/truth/truth_comparison.h"
 
 namespace msmcal::app {
@@ -63,36 +65,75 @@ void RunSessionCheck(const SessionCheckArgs& args) {
 
 struct SessionRunArgs {
   std::string rig = "config/rig.yaml";
-  std::string camera;
+  std::string camera;  // empty: the rig file's camera section
   std::string mcu;
   std::string plan;
   std::string out;
   std::string rig_id, mirror_id, note;
-  double frame_rate_hz = 10.0;
+  double frame_rate_hz = 0;  // 0: the rig file's camera.frame_rate_hz
+  std::string operator_spec = "console";
+  int hook_timeout_s = 600;
+  bool dry_run = false;
 };
+
+// The nearest existing folder at or above `p` (where DIR would be created).
+std::filesystem::path ExistingAncestor(std::filesystem::path p) {
+  while (!p.empty() && !std::filesystem::exists(p)) p = p.parent_path();
+  return p.empty() ? std::filesystem::current_path() : p;
+}
+
+// --dry-run: the plan against the rig's limits and the free disk; touches nothing.
+void RehearseSession(const SessionRunArgs& args, const rig::RigFile& rig,
+                     const dataset::Recording& plan, const std::filesystem::path& out) {
+  const plan::PlanSummary s = plan::SummarisePlan(plan, rig);
+  const std::filesystem::path parent = ExistingAncestor(out.parent_path());
+  const std::filesystem::space_info space = std::filesystem::space(parent);
+  std::printf("dry run: %s against %s (no instrument contacted, %s not created)\n%s",
+              args.plan.c_str(), args.rig.c_str(), out.c_str(), s.text.c_str());
+  std::printf("free disk at %s: %.1f GiB\n", parent.c_str(),
+              static_cast<double>(space.available) / (1ull << 30));
+  if (space.available < s.disk_bytes) {
+    throw std::runtime_error("dry run: disk needed = " + std::to_string(s.disk_bytes) +
+                             " bytes exceeds the free space at " + parent.string() + " (" +
+                             std::to_string(space.available) + " bytes)");
+  }
+  std::printf("dry run: the plan fits the rig's limits\n");
+}
 
 void RunSessionRun(const SessionRunArgs& args) {
   namespace fs = std::filesystem;
   const auto start = std::chrono::steady_clock::now();
   const fs::path out = fs::absolute(args.out);
+  // Everything is checked before anything is created or contacted.
+  const rig::RigFile rig = rig::LoadRigFile(args.rig);
+  (void)ParseOperatorSpec(args.operator_spec);
+  if (args.hook_timeout_s <= 0)
+    throw std::invalid_argument("--hook-timeout = " + std::to_string(args.hook_timeout_s) +
+                                ": must be > 0 s");
+  const dataset::Recording plan = ReadPlanFolder(args.plan);
+  if (std::string e = plan::CheckPlanAgainstRig(plan, rig); !e.empty())
+    throw std::runtime_error(args.plan + " against " + args.rig + ": " + e);
   if (fs::exists(out) && !fs::is_empty(out))
     throw std::runtime_error(out.string() +
                              ": exists and is not empty (an interrupted session continues with "
                              "`msmcal resume " +
                              out.string() + "`)");
-  LabAcquisitionOptions lab;
-  {
-    std::ifstream in(args.rig, std::ios::binary);
-    if (!in) throw std::runtime_error(args.rig + ": cannot read the rig configuration");
-    std::stringstream text;
-    text << in.rdbuf();
-    lab.rig_yaml = text.str();
+  if (args.dry_run) {
+    RehearseSession(args, rig, plan, out);
+    return;
   }
+  LabAcquisitionOptions lab;
+  lab.rig_yaml = rig.text;
   lab.rig_origin = args.rig;
-  lab.camera_address = args.camera;
+  lab.camera_address = args.camera.empty() ? rig.camera.OpenString() : args.camera;
   lab.mcu_device = args.mcu;
-  lab.camera_frame_rate_hz = args.frame_rate_hz;
-  lab.plan = ReadPlanFolder(args.plan);
+  lab.camera_frame_rate_hz = args.frame_rate_hz > 0 ? args.frame_rate_hz : rig.camera.frame_rate_hz;
+  lab.camera_exposure_us = rig.camera.exposure_us;
+  lab.background_seconds = rig.step2.hall_background_s;
+  lab.poses = plan::PoseGeometryOf(rig);
+  lab.operator_spec = args.operator_spec;
+  lab.hook_timeout_ms = args.hook_timeout_s * 1000;
+  lab.plan = plan;
   lab.rig_id = args.rig_id;
   lab.mirror_id = args.mirror_id;
   lab.note = args.note;
@@ -130,19 +171,27 @@ void AddSessionCommands(CLI::App& app) {
   auto* run = session->add_subcommand(
       "run",
       "A guided calibration session on the real rig (journalled; `msmcal resume` continues it)");
-  run->add_option("--rig", run_args->rig, "Rig configuration (generators:, hall_mcu:)");
+  run->add_option("--rig", run_args->rig, "Rig file (docs/rig-file.md)");
   run->add_option("--camera", run_args->camera,
-                  "Camera: GigE Vision IP address, or V4L2 device (/dev/video0)")
-      ->required();
+                  "Camera: GigE Vision IP address, or V4L2 device (default: the rig file's)");
   run->add_option("--mcu", run_args->mcu, "Hall MCU serial device (default: the rig file's)");
   run->add_option("--plan", run_args->plan,
-                  "Plan folder: session.yaml + camera.yaml (frames to take, trigger table)")
+                  "Plan folder: session.yaml + camera.yaml (`msmcal plan` writes one)")
       ->required();
   run->add_option("--out", run_args->out, "Session folder to create")->required();
   run->add_option("--rig-id", run_args->rig_id, "Rig identifier (catalogue)");
   run->add_option("--mirror-id", run_args->mirror_id, "Mirror identifier (catalogue)");
   run->add_option("--note", run_args->note, "Free text (catalogue)");
-  run->add_option("--frame-rate", run_args->frame_rate_hz, "Camera frame rate, Hz");
+  run->add_option("--frame-rate", run_args->frame_rate_hz,
+                  "Camera frame rate, Hz (default: the rig file's)");
+  run->add_option("--operator", run_args->operator_spec,
+                  "Who changes the rig: console (guided terminal) or hook:CMD (CMD gets each "
+                  "set-up's JSON on stdin, docs/lab-path.md)");
+  run->add_option("--hook-timeout", run_args->hook_timeout_s,
+                  "Seconds a hook may take per set-up (then: abort, safe state)");
+  run->add_flag("--dry-run", run_args->dry_run,
+                "Check the plan against the rig's limits and the free disk, print duration, "
+                "prompts and disk needed; create nothing, contact no instrument");
   run->callback([run_args] { RunSessionRun(*run_args); });
 }
 

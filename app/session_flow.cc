@@ -17,6 +17,7 @@
 #include "mocks/rig/truth_io.h"
 #include "sessions/interchange/interchange_io.h"
 #include "sessions/orchestrator/console_operator.h"
+#include "sessions/orchestrator/hook_operator.h"
 #include "sessions/orchestrator/preview.h"
 #include "sessions/results/finish_steps.h"
 #include "sessions/store/session_store.h"
@@ -56,11 +57,7 @@ void MakeGuided(DemoAcquisitionOptions& acq) {
     for (int l = 0; l < s1.poses; ++l) {
       const double mm = s1.nearest_mm +
                         (s1.poses > 1 ? l * (s1.farthest_mm - s1.nearest_mm) / (s1.poses - 1) : 0);
-      char hint[160];
-      std::snprintf(hint, sizeof(hint),
-                    "about %.0f mm from the mirror position towards the source, tilted %+.0f deg",
-                    mm, (l % 2 == 0 ? 1 : -1) * s1.tilt_deg);
-      co.pose_hints.push_back(hint);
+      co.poses.push_back({mm, (l % 2 == 0 ? 1 : -1) * s1.tilt_deg});
     }
     return std::make_unique<orchestrator::ConsoleOperator>(plan, co, &world);
   };
@@ -124,6 +121,21 @@ std::string ReadTextFile(const fs::path& file) {
   return text.str();
 }
 
+int64_t MonotonicNs() {
+  timespec ts{};
+  clock_gettime(CLOCK_MONOTONIC, &ts);
+  return static_cast<int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
+}
+
+int64_t RealtimeNs();
+
+// The clock the camera driver stamps host arrival with: Aravis CLOCK_REALTIME
+// (arv_buffer_get_system_timestamp), V4L2 CLOCK_MONOTONIC (the buffer timestamps).
+std::function<int64_t()> HostClockFor(const std::string& camera) {
+  const bool v4l2 = camera.rfind("v4l2:", 0) == 0 || camera.rfind("/dev/", 0) == 0;
+  return v4l2 ? std::function<int64_t()>(MonotonicNs) : std::function<int64_t()>(RealtimeNs);
+}
+
 int64_t RealtimeNs() {
   timespec ts{};
   clock_gettime(CLOCK_REALTIME, &ts);
@@ -159,13 +171,27 @@ orchestrator::SessionResult RunLabAcquisition(const fs::path& out,
   oo.mcu_rate_hz = mcu.rate_hz;
   oo.camera = options.camera_address;
   oo.camera_frame_rate_hz = options.camera_frame_rate_hz;
+  oo.camera_exposure_us = options.camera_exposure_us;
+  oo.background_seconds = options.background_seconds;
   oo.run_kind = "lab";
+  const std::string hook = ParseOperatorSpec(options.operator_spec);
   YAML::Emitter config;
   config << YAML::BeginMap << YAML::Key << "rig_file" << YAML::Value << options.rig_origin
          << YAML::Key << "camera_address" << YAML::Value << options.camera_address << YAML::Key
          << "mcu_device" << YAML::Value << oo.mcu.device << YAML::Key << "camera_frame_rate_hz"
-         << YAML::Value << common::ShortestDouble(options.camera_frame_rate_hz) << YAML::Key
-         << "rig_yaml" << YAML::Value << YAML::Literal << options.rig_yaml << YAML::EndMap;
+         << YAML::Value << common::ShortestDouble(options.camera_frame_rate_hz);
+  if (options.camera_exposure_us)
+    config << YAML::Key << "camera_exposure_us" << YAML::Value
+           << common::ShortestDouble(*options.camera_exposure_us);
+  config << YAML::Key << "background_seconds" << YAML::Value
+         << common::ShortestDouble(options.background_seconds) << YAML::Key << "operator"
+         << YAML::Value << options.operator_spec << YAML::Key << "poses" << YAML::Value
+         << YAML::Flow << YAML::BeginSeq;
+  for (const auto& p : options.poses)
+    config << YAML::Flow << YAML::BeginSeq << common::ShortestDouble(p.distance_mm)
+           << common::ShortestDouble(p.tilt_deg) << YAML::EndSeq;
+  config << YAML::EndSeq << YAML::Key << "rig_yaml" << YAML::Value << YAML::Literal
+         << options.rig_yaml << YAML::EndMap;
   oo.run_config_yaml = std::string(config.c_str()) + "\n";
   oo.rig_id = options.rig_id;
   oo.mirror_id = options.mirror_id;
@@ -173,16 +199,48 @@ orchestrator::SessionResult RunLabAcquisition(const fs::path& out,
   oo.resume = options.resume;
   oo.watchdog = gen::SelfWatchdogLaunch("msmcal", "watchdog");
   if (std::string e = oo.Validate(); !e.empty()) throw std::invalid_argument(e);
+  oo.on_frame = GuidedObserver(out, options.plan.world_board, options.plan.sliding_board,
+                               options.progress, nullptr);
 
+  if (!hook.empty()) {
+    orchestrator::HookOperatorOptions ho;
+    ho.command = hook;
+    ho.timeout_ms = options.hook_timeout_ms;
+    ho.poses = options.poses;
+    ho.mcu_device = oo.mcu.device;
+    ho.host_clock_ns = HostClockFor(oo.camera);
+    ho.log = options.progress;
+    orchestrator::HookOperator op(options.plan, ho, nullptr);
+    orchestrator::SessionResult result =
+        orchestrator::RunSession(oo, options.plan, op, options.progress);
+    SendTruthRequest(op, out, options.progress);
+    return result;
+  }
   orchestrator::ConsoleOperatorOptions co;
   co.input_fd = options.input_fd;
   co.output_fd = options.output_fd;
   co.mcu_device = oo.mcu.device;
-  co.host_clock_ns = RealtimeNs;  // Aravis stamps host arrival with CLOCK_REALTIME
+  co.host_clock_ns = HostClockFor(oo.camera);
+  co.poses = options.poses;
   orchestrator::ConsoleOperator console(options.plan, co, nullptr);
-  oo.on_frame = GuidedObserver(out, options.plan.world_board, options.plan.sliding_board,
-                               options.progress, nullptr);
   return orchestrator::RunSession(oo, options.plan, console, options.progress);
+}
+
+std::string ParseOperatorSpec(const std::string& spec) {
+  if (spec == "console") return {};
+  if (spec.rfind("hook:", 0) == 0 && spec.size() > 5) return spec.substr(5);
+  throw std::invalid_argument("--operator = '" + spec +
+                              "': must be console or hook:CMD (CMD non-empty)");
+}
+
+void SendTruthRequest(orchestrator::HookOperator& hook, const fs::path& out,
+                      const orchestrator::ProgressFn& progress) {
+  try {
+    hook.RequestTruth(out / "truth");
+  } catch (const orchestrator::HookFailed& e) {
+    // The session is complete; a hook without truth to give is told to exit 0 (docs/lab-path.md).
+    if (progress) progress(std::string("warning: ") + e.what());
+  }
 }
 
 LabAcquisitionOptions LabOptionsFromJournal(const fs::path& dir, const std::string& config_yaml) {
@@ -195,6 +253,11 @@ LabAcquisitionOptions LabOptionsFromJournal(const fs::path& dir, const std::stri
     o.mcu_device = n["mcu_device"].as<std::string>();
     o.camera_frame_rate_hz = n["camera_frame_rate_hz"].as<double>();
     o.rig_yaml = n["rig_yaml"].as<std::string>();
+    if (n["camera_exposure_us"]) o.camera_exposure_us = n["camera_exposure_us"].as<double>();
+    if (n["background_seconds"]) o.background_seconds = n["background_seconds"].as<double>();
+    if (n["operator"]) o.operator_spec = n["operator"].as<std::string>();
+    if (n["poses"])
+      for (const auto& p : n["poses"]) o.poses.push_back({p[0].as<double>(), p[1].as<double>()});
   } catch (const YAML::Exception& e) {
     throw std::runtime_error(where + ": not a lab session configuration: " + e.what());
   }

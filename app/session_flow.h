@@ -7,6 +7,7 @@
 #include <filesystem>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -14,6 +15,11 @@
 #include "processing/dataset/recording.h"
 #include "sessions/orchestrator/orchestrator.h"
 #include "sessions/orchestrator/rig_operator.h"
+#include "sessions/setup/setup.h"
+
+namespace msmcal::orchestrator {
+class HookOperator;
+}
 
 namespace msmcal::app {
 
@@ -59,7 +65,21 @@ struct LabAcquisitionOptions {
   bool resume = false;
   int input_fd = 0, output_fd = 1;  // the operator's terminal
   orchestrator::ProgressFn progress;
+  // From the rig file (sessions/rig) when the session has one:
+  std::optional<double> camera_exposure_us;
+  double background_seconds = 12.0;        // step2.hall_background_s
+  std::vector<setup::PoseGeometry> poses;  // sliding_plate: the set-ups' pose hints
+  // Who changes the rig: "console" (the guided terminal) or "hook:CMD" (CMD through /bin/sh -c
+  // with each set-up's JSON on stdin, docs/lab-path.md). ParseOperatorSpec checks it.
+  std::string operator_spec = "console";
+  int hook_timeout_ms = 600'000;
 };
+// "console" -> empty; "hook:CMD" -> CMD. Throws std::invalid_argument naming --operator.
+std::string ParseOperatorSpec(const std::string& spec);
+// The final truth request through a hook after a session (a failed one is a warning: the
+// session is complete).
+void SendTruthRequest(orchestrator::HookOperator& hook, const std::filesystem::path& out,
+                      const orchestrator::ProgressFn& progress);
 // Runs (or resumes) the session into `out`. The journal keeps what a resume needs: the rig
 // configuration's text, the camera address, the MCU device.
 orchestrator::SessionResult RunLabAcquisition(const std::filesystem::path& out,

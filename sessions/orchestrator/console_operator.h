@@ -2,17 +2,23 @@
 // The guided mode (issue 9): a RigOperator that tells the person at the rig what to do next, on
 // a terminal, and waits for the answer before the orchestrator goes on.
 //
-// For every operator action the orchestrator asks for (RigOperator::Prepare*), ConsoleOperator
-// prints a numbered instruction block (position in the session, what to mount or remove, the
-// drive mode, the triggers of the frame, which beams to unblock) followed by the prompt
+// The orchestrator asks for every frame and Hall recording (RigOperator::Prepare*); the console
+// prompts only when the physical set-up changes: the plan's frames are grouped into set-ups
+// (sessions/setup: consecutive frames of a step with equal camera position, MSM / top frame,
+// sliding plate pose, unblocked beams and drive mode), and a frame whose set-up is the one
+// confirmed last runs without a prompt (repeated exposures, frames differing only in their
+// triggers). Each set-up prints its instruction block (rendered from the Setup: position in the
+// session, what to mount or remove, the drive mode, the frames it covers, which beams to
+// unblock) followed by the prompt
 //   [Enter] ready  [r] repeat instructions  [q] abort
 // and reads one line from its input. Enter (an empty line) confirms; "r" prints the block again;
 // "q" — and the end of the input — throws OperatorAbort, which RunSession treats like any other
 // failure (generator outputs off, the abort recorded in the session log / journal).
 //
-// An optional inner RigOperator actually changes the rig once the operator confirmed (the demo's
-// SimulatedWorld); without one (the lab) the human does it, and ConsoleOperator itself decides
-// which frames show the new setup (FrameShowsCurrentSetup): see ConsoleOperatorOptions.
+// An optional inner RigOperator actually changes the rig (the demo's SimulatedWorld); it is told
+// about every frame (the frame's trigger selection is not physical), after the confirmation when
+// there was a prompt. Without one (the lab) the human does it, and ConsoleOperator itself decides
+// which frames show the set-up (FrameShowsCurrentSetup): see ConsoleOperatorOptions.
 //
 // The orchestrator's call order is: step-1 frames, PrepareHallRecording(background) (the mirror's
 // top frame removed; the recording starts right after the confirmation), then
@@ -20,8 +26,8 @@
 // OrchestratorOptions::mcu.device is empty the background call comes first instead (before the
 // rig check: the MCU's device is needed for it) and the background recording follows step 1
 // without another prompt; the instruction texts say which. The first call tells the order, and
-// the blocks are numbered "[k/N]" in it (N = 2 + step-1 frames + step-2 frames). A resumed session
-// skips the blocks of frames already recorded, keeping the numbers.
+// the blocks are numbered "[k/N]" in it (N = the plan's set-ups). A resumed session skips the
+// blocks of frames already recorded, keeping the numbers; its first frame always prompts.
 //
 // Thread safety: Prepare* and FrameShowsCurrentSetup are called from the orchestrator's thread.
 
@@ -34,6 +40,7 @@
 #include "processing/dataset/recording.h"
 #include "sessions/orchestrator/orchestrator.h"
 #include "sessions/orchestrator/rig_operator.h"
+#include "sessions/setup/setup.h"
 
 namespace msmcal::orchestrator {
 
@@ -46,9 +53,9 @@ class OperatorAbort : public std::runtime_error {
 struct ConsoleOperatorOptions {
   int input_fd = 0;   // lines typed by the operator (not owned, not closed)
   int output_fd = 1;  // instructions and prompts (not owned, not closed)
-  // Optional, per step-1 pose index l: where the sliding plate goes, appended to the mount
-  // instruction ("about 35 mm from the mirror towards the source, tilted +12 deg").
-  std::vector<std::string> pose_hints;
+  // Optional, per step-1 pose index l: where the sliding plate goes, in the mount instruction
+  // ("about 35 mm from the mirror position towards the source, tilted +12 deg") and the Setup.
+  std::vector<setup::PoseGeometry> poses;
 
   // Lab only (no inner operator):
   // The Hall MCU's serial device for both recordings (returned by PrepareHallRecording).
@@ -58,24 +65,16 @@ struct ConsoleOperatorOptions {
   // operator confirms a setup.
   std::function<int64_t()> host_clock_ns;
   // A frame shows the confirmed setup when it reached the host at least this long after the
-  // confirmation: the host arrival time bounds the end of the exposure, so this must cover one
-  // exposure + transfer (frames in flight at the confirmation are discarded). Device timestamps
-  // are not used because the camera's clock is not tied to the host's.
+  // confirmation (or, for a frame of an unchanged set-up, after its Prepare*Frame call): the host
+  // arrival time bounds the end of the exposure, so this must cover one exposure + transfer
+  // (frames in flight at the confirmation are discarded). Device timestamps are not used because
+  // the camera's clock is not tied to the host's.
   int64_t settle_ns = 300'000'000;
 
   // Empty when valid for the given mode (with or without an inner operator); otherwise names the
   // field, its value and the constraint.
   std::string Validate(bool has_inner) const;
 };
-
-// The instruction blocks (pure; what ConsoleOperator prints before each prompt). `number` and
-// `total` give the "[k/N]" position. Throws std::out_of_range for an index outside the plan.
-// before_step1: the background set-up is asked before step 1 (the recording follows step 1).
-std::string DescribeHallRecording(const dataset::Recording& plan, HallRun run, bool before_step1,
-                                  int number, int total);
-std::string DescribeStep1Frame(const dataset::Recording& plan, size_t index,
-                               const std::vector<std::string>& pose_hints, int number, int total);
-std::string DescribeStep2Frame(const dataset::Recording& plan, size_t index, int number, int total);
 
 inline constexpr const char* kConsolePrompt =
     "[Enter] ready  [r] repeat instructions  [q] abort > ";
@@ -95,6 +94,8 @@ class ConsoleOperator : public RigOperator {
 
   int confirmations() const { return confirmations_; }  // setups confirmed so far
   int total_steps() const { return total_; }            // instruction blocks in the plan
+  // The plan's set-ups in the order decided by the first call (background first or not).
+  const setup::SetupPlan& setups() const { return setups_; }
 
  private:
   // Prints `instructions` and the prompt until the operator confirms; throws OperatorAbort.
@@ -102,7 +103,8 @@ class ConsoleOperator : public RigOperator {
   void Write(const std::string& text) const;
   // Decides the numbering on the first call (background asked first or after step 1).
   void SeeFirstCall(bool is_background);
-  int Step1Number(size_t index) const;
+  // Prompts for setups_.setups[k] unless it is the set-up confirmed last.
+  void Enter(int k);
   // One line from the input without the newline; false at EOF.
   bool ReadLine(std::string* line);
 
@@ -114,6 +116,8 @@ class ConsoleOperator : public RigOperator {
   bool order_known_ = false;
   bool background_first_ = false;
   int64_t confirmed_ns_ = 0;
+  setup::SetupPlan setups_;
+  int current_ = -1;     // the set-up confirmed last (index into setups_.setups)
   std::string pending_;  // bytes read past the last line
 };
 

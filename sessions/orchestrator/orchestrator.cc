@@ -260,6 +260,7 @@ RigCheckResult CheckRig(const OrchestratorOptions& options, const dataset::Recor
       camera::CameraConfig config;
       config.pixel_format = camera::PixelFormat::kMono8;
       config.frame_rate_hz = options.camera_frame_rate_hz;
+      config.exposure_us = options.camera_exposure_us;
       config.buffer_count = 4;
       if (camera::Status s = inst->cam->Configure(config); !s)
         r.problems.push_back("camera configuration (Mono8, full sensor): " + s.message);

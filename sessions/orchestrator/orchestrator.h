@@ -24,6 +24,7 @@
 #include <functional>
 #include <memory>
 #include <opencv2/core.hpp>
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -74,6 +75,8 @@ struct OrchestratorOptions {
   // address only) or a V4L2 device ("/dev/video0", "v4l2:/dev/video0").
   std::string camera = "127.0.0.1";
   double camera_frame_rate_hz = 10.0;
+  std::optional<double>
+      camera_exposure_us;        // unset: the camera's own (rig file: camera.exposure_us)
   int frame_timeout_ms = 10000;  // per NextFrame
   int max_stale_frames = 50;     // frames discarded while waiting for the new setup
   int max_gate_attempts = 2;     // fresh frames tried per frame before it is rejected

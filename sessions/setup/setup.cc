@@ -96,8 +96,10 @@ std::vector<std::string> Changes(const std::optional<RigState>& before, const Ri
     if (!s.sliding_plate.mounted)
       c.push_back("remove the sliding plate");
     else
-      c.push_back(std::string(all || !before->sliding_plate.mounted ? "mount" : "move") +
-                  " the sliding plate at " + PoseWhere(s.sliding_plate, poses));
+      c.push_back(std::string(all || !before->sliding_plate.mounted
+                                  ? "mount the sliding plate at "
+                                  : "move the sliding plate to ") +
+                  PoseWhere(s.sliding_plate, poses));
   }
   std::vector<int> block, unblock;
   if (all) {

@@ -93,7 +93,7 @@ TEST(ConsoleOperator, WholeSessionInOrderWithNumberedInstructions) {
   FakeRig rig;
   Terminal term;
   ConsoleOperatorOptions o = term.Options();
-  o.pose_hints = {"about 35 mm from the mirror", "about 100 mm from the mirror"};
+  o.poses = {{35, 12}, {100, -12}};
   ConsoleOperator op(plan, o, &rig);
   EXPECT_EQ(op.total_steps(), 8);
   term.Type(std::string(8, '\n'));  // all answers at once: lines are split correctly
@@ -251,25 +251,75 @@ TEST(ConsoleOperator, LabModeAcceptsFramesArrivingAfterConfirmationPlusSettle) {
   EXPECT_FALSE(op.FrameShowsCurrentSetup(info));
 }
 
-TEST(ConsoleOperator, DescriptionsRejectIndicesOutsideThePlan) {
+TEST(ConsoleOperator, IndicesOutsideThePlanAreRefused) {
   const dataset::Recording plan = SmallPlan();
-  EXPECT_THROW(DescribeStep1Frame(plan, 3, {}, 1, 1), std::out_of_range);
-  EXPECT_THROW(DescribeStep2Frame(plan, 3, 1, 1), std::out_of_range);
+  FakeRig rig;
+  Terminal term;
+  ConsoleOperator op(plan, term.Options(), &rig);
+  EXPECT_THROW(op.PrepareStep1Frame(3), std::out_of_range);
+  EXPECT_THROW(op.PrepareStep2Frame(3), std::out_of_range);
+  EXPECT_TRUE(rig.calls.empty());
 }
 
-// A frame repeating the previous one (same pose, same beams) is another exposure: the block
-// says to change nothing and keeps the beams line; a change of beams at the same pose does not.
-TEST(ConsoleOperator, RepeatedExposureSaysChangeNothing) {
+// Frames repeating the previous set-up (same pose, same beams in any order; step 2 frames that
+// differ only in their triggers) run without a prompt; the inner operator still hears of every
+// frame. A change of beams at the same pose asks again.
+TEST(ConsoleOperator, RepeatedExposuresAndUnchangedSetupsDoNotPrompt) {
   dataset::Recording plan = SmallPlan();
   plan.step1.insert(plan.step1.begin() + 1, {"step1/0000b.png", 0, {3, 2, 1}});
-  const std::string again = DescribeStep1Frame(plan, 1, {}, 2, 9);
-  EXPECT_NE(again.find("Another exposure of the same scene: change nothing"), std::string::npos)
-      << again;
-  EXPECT_NE(again.find("Unblock beams 3, 2 and 1 (all beams)."), std::string::npos) << again;
-  EXPECT_EQ(again.find("Move the sliding plate"), std::string::npos) << again;
-  const std::string other = DescribeStep1Frame(plan, 3, {}, 4, 9);  // pose 1, beam 2 alone
-  EXPECT_EQ(other.find("Another exposure"), std::string::npos) << other;
-  EXPECT_NE(other.find("Leave the sliding plate at pose 2"), std::string::npos) << other;
+  plan.step2.push_back({"step2/0003.png", dataset::Step2Kind::kScan, {0}, {1, 2, 3}});
+  plan.step2.push_back({"step2/0004.png", dataset::Step2Kind::kScan, {2}, {1, 2, 3}});
+  FakeRig rig;
+  Terminal term;
+  ConsoleOperatorOptions o = term.Options();
+  o.poses = {{35, 12}, {100, -12}};
+  ConsoleOperator op(plan, o, &rig);
+  EXPECT_EQ(op.total_steps(), 8);  // 4 + 2 step-1 frames, 3 + 2 step-2 frames: 8 set-ups
+  term.Type(std::string(8, '\n'));
+  for (size_t i = 0; i < plan.step1.size(); ++i) op.PrepareStep1Frame(i);
+  (void)op.PrepareHallRecording(HallRun::kBackground);
+  (void)op.PrepareHallRecording(HallRun::kActual);
+  for (size_t i = 0; i < plan.step2.size(); ++i) op.PrepareStep2Frame(i);
+  EXPECT_EQ(op.confirmations(), 8);
+  EXPECT_EQ(rig.calls.size(), plan.step1.size() + plan.step2.size() + 2);
+  const std::string out = term.Output();
+  EXPECT_EQ(Count(out, kConsolePrompt), 8u);
+  EXPECT_NE(out.find("Step 1, frame 1 of 4 and 1 more at this set-up (step1/0000.png .. "
+                     "step1/0000b.png)"),
+            std::string::npos)
+      << out;
+  EXPECT_NE(out.find("2 frames are taken at this set-up without another prompt"), std::string::npos)
+      << out;
+  EXPECT_NE(out.find("Step 2, frame 3 of 5, scan and 2 more at this set-up"), std::string::npos)
+      << out;
+  EXPECT_EQ(out.find("Step 1, frame 2 of 4"), std::string::npos) << out;
+  EXPECT_NE(out.find("Leave the sliding plate at pose 2 of 2"), std::string::npos) << out;
+  // The blocks are the Setups' texts.
+  for (const auto& s : op.setups().setups) EXPECT_NE(out.find(s.text), std::string::npos);
+}
+
+// Lab mode: a frame of an unchanged set-up counts only once it arrived settle_ns after its own
+// Prepare call (no prompt, but frames in flight are still discarded).
+TEST(ConsoleOperator, LabModeFreshnessRestartsAtEveryFrameOfASetup) {
+  dataset::Recording plan = SmallPlan();
+  plan.step1.insert(plan.step1.begin() + 1, {"step1/0000b.png", 0, {1, 2, 3}});
+  Terminal term;
+  ConsoleOperatorOptions o = term.Options();
+  o.mcu_device = "/dev/ttyACM0";
+  int64_t now = 1'000'000'000;
+  o.host_clock_ns = [&now] { return now; };
+  o.settle_ns = 100'000'000;
+  ConsoleOperator op(plan, o, nullptr);
+  term.Type("\n");
+  op.PrepareStep1Frame(0);
+  now = 5'000'000'000;
+  op.PrepareStep1Frame(1);  // no prompt: only one answer was typed
+  EXPECT_EQ(op.confirmations(), 1);
+  camera::FrameInfo info;
+  info.host_timestamp_ns = 5'000'000'000 + 50'000'000;
+  EXPECT_FALSE(op.FrameShowsCurrentSetup(info));
+  info.host_timestamp_ns = 5'000'000'000 + 100'000'000;
+  EXPECT_TRUE(op.FrameShowsCurrentSetup(info));
 }
 
 TEST(LiveFigures, OneLinePerDecisionWithFiguresReasonAndTotals) {
