@@ -392,8 +392,9 @@ struct PhysicalTwin::Impl {
 };
 
 // The Hall MCU's view of the world: readings every sample period of MCU time, clock edges as
-// they come, computed from the twin's state when the MCU takes them. Readings not taken while
-// the host was not streaming are skipped (the stream restarts at the present).
+// they come, computed from the twin's state when the MCU takes them, each handed over when its
+// time has come. Readings not taken while the host was not streaming are skipped (the stream
+// restarts at the present).
 class PhysicalTwin::Impl::HallSource final : public sim::McuDataSource {
  public:
   HallSource(const PhysicalTwin::Impl& twin, uint16_t rate_hz, uint64_t seed)
@@ -428,9 +429,15 @@ class PhysicalTwin::Impl::HallSource final : public sim::McuDataSource {
   }
 
  private:
+  // The MCU emits an event when its time has come (real time on the twin's clock): the twin
+  // paces the stream itself, so that after a pause in streaming it resumes at the present.
   sim::McuEvent Pop() {
     sim::McuEvent e = queue_.front();
     queue_.pop_front();
+    const int64_t due_ns = twin_.TwinNs(e.time_us);
+    for (int64_t now = twin_.Now(); now < due_ns; now = twin_.Now())
+      std::this_thread::sleep_for(
+          std::chrono::nanoseconds(std::min<int64_t>(due_ns - now, 2000000)));
     return e;
   }
   const PhysicalTwin::Impl& twin_;
@@ -530,7 +537,7 @@ PhysicalTwin::PhysicalTwin(const PhysicalTwinOptions& options) : impl_(std::make
 
   sim::MockMcuOptions mo;
   mo.link_path = options.hall_link_path;
-  mo.speed = 1.0;  // real time: the twin's clock is the MCU's
+  mo.speed = 0;  // the source paces itself on the twin's clock (HallSource::Pop)
   mo.rate_hz = options.hall_rate_hz;
   mo.record_sent = false;
   mo.now_ns = m.clock;
