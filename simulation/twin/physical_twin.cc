@@ -124,7 +124,7 @@ struct PhysicalTwin::Impl {
 
   std::mutex render_mu;
   std::vector<render::SceneDot> last_dots;
-  size_t last_boards = 0;
+  std::vector<geometry::Rigid3d> last_boards;
   cv::Mat last_image;
   bool have_image = false;
 
@@ -319,15 +319,23 @@ struct PhysicalTwin::Impl {
       while (stamps.size() > 256) stamps.pop_front();
     }
     std::lock_guard lock(render_mu);
-    // The same scene renders to the same image but for its noise: re-render only on change.
-    bool same =
-        have_image && scene.boards.size() == last_boards && scene.dots.size() == last_dots.size();
+    // The same scene renders to the same image but for its noise: re-render only on change
+    // (boards where they were, the same dots).
+    bool same = have_image && scene.boards.size() == last_boards.size() &&
+                scene.dots.size() == last_dots.size();
+    for (size_t i = 0; same && i < scene.boards.size(); ++i) {
+      const geometry::Rigid3d& a = scene.boards[i].cam_from_board;
+      const geometry::Rigid3d& b = last_boards[i];
+      same = (a.translation - b.translation).norm() < 1e-9 &&
+             (a.RotationMatrix() - b.RotationMatrix()).norm() < 1e-12;
+    }
     for (size_t i = 0; same && i < scene.dots.size(); ++i)
       same = (scene.dots[i].p_in_cam - last_dots[i].p_in_cam).norm() < 1e-6;  // mm
     if (!same) {
       last_image = sim->RenderScene(scene, frame_index);
       last_dots = scene.dots;
-      last_boards = scene.boards.size();
+      last_boards.clear();
+      for (const auto& board : scene.boards) last_boards.push_back(board.cam_from_board);
       have_image = true;
     }
     sim::PlaceImage(last_image, data, width, height, fmt);

@@ -257,6 +257,28 @@ TEST_F(PhysicalTwinTest, Step1DotsLandOnTheSlidingPlate) {
   EXPECT_EQ(Matched(dots, expected, 1.0, &worst), 3) << "worst " << worst;
 }
 
+TEST_F(PhysicalTwinTest, ThePlateMovesInTheDarkToo) {
+  // Every beam blocked: no dots either way, but the frames show where the plate is.
+  TwinSetup s;
+  s.camera = 1;
+  s.msm_mounted = false;
+  SlidingPlateSetup plate;
+  plate.mounted = true;
+  plate.pose = 0;
+  s.sliding_plate = plate;
+  s.beams_unblocked = std::vector<int>{};
+  twin_->Apply(s);
+  const cv::Mat a = FrameAfter(twin_->NowNs());
+  s.sliding_plate->pose = 5;
+  twin_->Apply(s);
+  const cv::Mat b = FrameAfter(twin_->NowNs());
+  ASSERT_FALSE(a.empty());
+  ASSERT_FALSE(b.empty());
+  cv::Mat diff;
+  cv::absdiff(a, b, diff);
+  EXPECT_GT(cv::countNonZero(diff > 60), 1000) << "the plate did not move in the image";
+}
+
 TEST_F(PhysicalTwinTest, HallMcuStreamsAndTimestampsTheClockOnlyWhileItIsOn) {
   ApplySignals({ref_->triggers()[0].t_s});
   hall_mcu::HallMcuOptions link;
@@ -283,8 +305,11 @@ TEST_F(PhysicalTwinTest, HallMcuStreamsAndTimestampsTheClockOnlyWhileItIsOn) {
   std::vector<hall_mcu::HallSample> on_readings;
   const auto on_edges = read(600, &on_readings);  // 0.6 s at 1 kHz: 3 clock periods
   ASSERT_GE(on_readings.size(), 600u);
+  // One edge per pattern period (0.2 s, MCU clock +35 ppm) over the readings' span.
+  const double span_s =
+      static_cast<double>(on_readings.back().mcu_time_us - on_readings.front().mcu_time_us) * 1e-6;
   EXPECT_GE(on_edges.size(), 2u);
-  EXPECT_LE(on_edges.size(), 4u);
+  EXPECT_NEAR(static_cast<double>(on_edges.size()), span_s / 0.2, 1.01);
   // Readings every 1 ms of MCU time; edges one pattern period apart (MCU clock: +35 ppm).
   EXPECT_EQ(on_readings[1].mcu_time_us - on_readings[0].mcu_time_us, 1000);
   for (size_t k = 1; k < on_edges.size(); ++k)
@@ -299,7 +324,8 @@ TEST_F(PhysicalTwinTest, HallMcuStreamsAndTimestampsTheClockOnlyWhileItIsOn) {
 
   slave_->SetOutput(2, false);  // clock output off
   std::vector<hall_mcu::HallSample> skip;
-  (void)read(100, &skip);  // what was in flight
+  // What was in flight: the mock MCU hands its output over in blocks of 4 KiB (~170 readings).
+  (void)read(400, &skip);
   std::vector<hall_mcu::HallSample> off_readings;
   const auto off_edges = read(600, &off_readings);
   EXPECT_GE(off_readings.size(), 600u);
