@@ -13,6 +13,7 @@
 #include <chrono>
 #include <cmath>
 #include <condition_variable>
+#include <cstdio>
 #include <cstring>
 #include <deque>
 #include <mutex>
@@ -536,7 +537,17 @@ PhysicalTwin::PhysicalTwin(const PhysicalTwinOptions& options) : impl_(std::make
         cam,
         [impl](uint8_t* data, int width, int height, sim::SimPixelFormat fmt, int64_t timestamp_ns,
                uint64_t frame_index) {
-          impl->Fill(data, width, height, fmt, timestamp_ns, frame_index);
+          // On the camera's C thread: nothing may escape. A frame that cannot be rendered is
+          // black (and said so once per kind of failure on stderr).
+          try {
+            impl->Fill(data, width, height, fmt, timestamp_ns, frame_index);
+          } catch (const std::exception& e) {
+            std::memset(data, 0, static_cast<size_t>(width) * height * sim::SimBytesPerPixel(fmt));
+            static std::string last;
+            if (last != e.what())
+              std::fprintf(stderr, "twin camera: frame not rendered: %s\n", e.what());
+            last = e.what();
+          }
         },
         &error);
     if (!m.camera)
