@@ -1,17 +1,22 @@
-// `msmcal session check --rig FILE --camera ADDR [--mcu DEVICE]`: the orchestrator's rig check
+// `msmcal session check --rig FILE [--camera ADDR] [--mcu DEVICE]`: the orchestrator's rig check
 // against the instruments of a rig configuration (config/rig.yaml: `generators:` and `hall_mcu:`
 // sections): identifies both generators and checks the reference lock and the signal limits,
 // opens the camera (GigE Vision by address, or V4L2 by device; Mono8), identifies the Hall MCU and
 // reads a status frame. Prints what it found and, when something is wrong, the list of problems
 // (exit status 1). Generator outputs are left off.
 //
-// `msmcal session run --rig FILE --camera ADDR --plan DIR --out DIR [--mcu DEVICE] [--rig-id ID]
-// [--mirror-id ID] [--note TEXT]`: a calibration session on the real rig, guided on this
-// terminal (what to mount, move, remove before every frame and Hall recording; live quality
-// figures; annotated previews in DIR/previews), journalled in DIR/session.db, then solved and
-// the Hall sensor calibrated. The plan folder holds session.yaml and camera.yaml as the
-// interchange format defines them (boards, beams, drive, clock, the trigger table and the frames
-// to take). Interrupted, it continues with `msmcal resume DIR`.
+// `msmcal session run --rig FILE --plan DIR --out DIR [--operator console|hook:CMD] [--dry-run]
+// [--camera ADDR] [--mcu DEVICE] [--frame-rate HZ] [--hook-timeout S] [--rig-id ID]
+// [--mirror-id ID] [--note TEXT]`: a calibration session on the real rig (docs/lab-path.md). The
+// rig file (docs/rig-file.md) is loaded and validated and the plan checked against it before
+// anything is created or contacted; the camera comes from its camera section (GigE address or
+// V4L2 device) unless --camera overrides it. The person at the rig is guided on this terminal
+// (console: one prompt per physical set-up, live quality figures, annotated previews in
+// DIR/previews) or a hook program gets each set-up as JSON on stdin (hook:CMD). Journalled in
+// DIR/session.db, then solved and the Hall sensor calibrated. The plan folder holds session.yaml
+// and camera.yaml as the interchange format defines them (`msmcal plan` writes one). --dry-run
+// checks the plan against the rig's limits and the free disk and prints the expected duration,
+// prompts and disk needed, creating nothing. Interrupted, it continues with `msmcal resume DIR`.
 #include <CLI/CLI.hpp>
 #include <chrono>
 #include <cstdio>
@@ -51,7 +56,9 @@ void RunSessionCheck(const SessionCheckArgs& args) {
   const hall_mcu::HallMcuConfig mcu = hall_mcu::LoadHallMcuConfig(args.rig);
   options.mcu = mcu.link;
   options.mcu_rate_hz = mcu.rate_hz;
-  options.camera = args.camera;
+  // --camera overrides the rig file's camera section (a rig file without one needs --camera).
+  options.camera =
+      args.camera.empty() ? rig::LoadRigFile(args.rig).camera.OpenString() : args.camera;
   const std::string device = args.mcu.empty() ? mcu.link.device : args.mcu;
   const orchestrator::RigCheckResult r = orchestrator::CheckRigOnly(options, nullptr, device);
   for (const auto& f : r.found) std::printf("ok: %s\n", f.c_str());
@@ -160,10 +167,8 @@ void AddSessionCommands(CLI::App& app) {
   auto* check = session->add_subcommand(
       "check", "Rig check: identify every instrument, generator lock, camera format, MCU stream");
   check->add_option("--rig", args->rig, "Rig configuration (generators:, hall_mcu:)");
-  check
-      ->add_option("--camera", args->camera,
-                   "Camera: GigE Vision IP address, or V4L2 device (/dev/video0)")
-      ->required();
+  check->add_option("--camera", args->camera,
+                    "Camera: GigE Vision IP address, or V4L2 device (default: the rig file's)");
   check->add_option("--mcu", args->mcu, "Hall MCU serial device (default: the rig file's)");
   check->callback([args] { RunSessionCheck(*args); });
 

@@ -1,5 +1,6 @@
-// libFuzzer target: config/rig.yaml, both of its readers: the generator part
-// (ParseRigGeneratorConfig) and the Hall MCU part (ParseHallMcuConfig).
+// libFuzzer target: config/rig.yaml, its readers: the generator part (ParseRigGeneratorConfig),
+// the Hall MCU part (ParseHallMcuConfig) and the whole rig file (rig::ParseRigFile, which runs
+// both and validates every other section).
 //
 // Checks: each reader returns or throws std::runtime_error naming the file ("rig.yaml:LINE");
 // Validate() of an accepted generator configuration returns (empty or a message) without
@@ -10,6 +11,7 @@
 #include "drivers/generator/rig_config.h"
 #include "drivers/hall_mcu/hall_mcu_config.h"
 #include "fuzz/fuzz_util.h"
+#include "sessions/rig/rig_file.h"
 
 using namespace msmcal;
 
@@ -20,5 +22,6 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     fuzz::MustReturn([&] { (void)config.Validate(); }, "RigGeneratorConfig::Validate");
   }
   fuzz::Returns([&] { (void)hall_mcu::ParseHallMcuConfig(text, "rig.yaml"); }, "rig.yaml");
+  fuzz::Returns([&] { (void)rig::ParseRigFile(text, "rig.yaml"); }, "rig.yaml");
   return 0;
 }

@@ -249,7 +249,9 @@ RigFile ParseRigFile(const std::string& yaml_text, const std::string& origin) {
   // generators: and hall_mcu: through their own loaders (they name file, line and field).
   rf.generators = gen::ParseRigGeneratorConfig(yaml_text, origin);
   if (std::string e = rf.generators.Validate(); !e.empty()) {
-    const YAML::Node at = NodeOfField(root, e);
+    // A trigger design refusal is about the `trigger:` settings.
+    const bool trigger = e.rfind("generators.signals: trigger design", 0) == 0;
+    const YAML::Node at = trigger ? root["generators"]["signals"]["trigger"] : NodeOfField(root, e);
     r.Fail(at, e, "");
   }
   rf.hall_mcu = hall_mcu::ParseHallMcuConfig(yaml_text, origin);

@@ -5,6 +5,7 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -122,23 +123,6 @@ TEST(SessionPlan, TheExamplePlanReadsBackAndCoversEveryTriggerOnce) {
   EXPECT_GT(s.expected_duration_s, s.setups * kSecondsPerChange);
   EXPECT_GT(s.disk_bytes, (back.step1.size() + back.step2.size()) * 2448ull * 2048ull);
   EXPECT_NE(s.text.find("prompts: " + std::to_string(s.setups)), std::string::npos) << s.text;
-}
-
-// The separation rule holds for any trigger layout: first fit never breaks it.
-TEST(FrameDesign, GroupsKeepTheRuleAndCoverEveryIndexOnce) {
-  std::vector<SignalPoint> p;
-  for (int i = 0; i < 200; ++i) p.push_back({std::sin(i * 0.37), std::cos(i * 0.11)});
-  const auto groups = GroupBySeparation(p, 4, 0.6);
-  std::vector<int> seen(p.size(), 0);
-  for (const auto& g : groups) {
-    EXPECT_LE(g.size(), 4u);
-    for (size_t a = 0; a < g.size(); ++a) {
-      ++seen[g[a]];
-      for (size_t b = a + 1; b < g.size(); ++b) EXPECT_GE(Distance(p[g[a]], p[g[b]]), 0.6);
-    }
-  }
-  for (int n : seen) EXPECT_EQ(n, 1);
-  EXPECT_THROW(GroupBySeparation(p, 0, 0.6), std::invalid_argument);
 }
 
 std::string LoadError(const std::string& text) {

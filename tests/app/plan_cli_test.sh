@@ -1,0 +1,74 @@
+#!/usr/bin/env bash
+# The lab path's first steps through the msmcal binary: `msmcal plan` from config/rig.yaml writes a
+# plan the shared interchange validator finds no key or structure problem in (only the images and
+# Hall files a plan does not have yet), prints its summary; `session run --dry-run` prints the
+# summary and creates nothing (no instrument is contacted: nothing listens in this test's network
+# namespace); a plan beyond the rig's limits and a rig beyond its own are refused naming the
+# field and the limit.
+set -euo pipefail
+msmcal="$1"
+src="$2"
+dir=$(mktemp -d)
+trap 'rm -rf "$dir"' EXIT
+
+"$msmcal" plan --rig "$src/config/rig.yaml" --out "$dir/plan" > "$dir/plan.out"
+cat "$dir/plan.out"
+grep -q "^frames: 48 step 1, 30 step 2 (73 triggers)$" "$dir/plan.out"
+grep -q "^prompts: 21 set-ups" "$dir/plan.out"
+grep -q "^expected duration: about " "$dir/plan.out"
+grep -q "^disk needed: about " "$dir/plan.out"
+test -f "$dir/plan/session.yaml" && test -f "$dir/plan/camera.yaml"
+# A second plan into the same folder needs --force.
+if "$msmcal" plan --rig "$src/config/rig.yaml" --out "$dir/plan" > "$dir/err" 2>&1; then
+  echo "expected a refusal to overwrite the plan"; exit 1
+fi
+grep -q "holds a plan already (--force replaces it)" "$dir/err"
+"$msmcal" plan --rig "$src/config/rig.yaml" --out "$dir/plan" --force > /dev/null
+
+# The shared validator: every problem it reports is a file a plan does not have yet.
+if [ -x /work/shared/tools/validate-interchange ]; then
+  /usr/bin/python3 /work/shared/tools/validate-interchange "$dir/plan" > "$dir/validate" || true
+  if grep -v -E "^missing (step[12]/[0-9]{4}\.png|hall/[a-z_]+\.csv)$|^FAIL: [0-9]+ problems$" \
+      "$dir/validate"; then
+    echo "validate-interchange found more than missing images and Hall files"; exit 1
+  fi
+fi
+
+# Rehearsal: the summary, DIR not created.
+"$msmcal" session run --rig "$src/config/rig.yaml" --plan "$dir/plan" --out "$dir/new/s1" \
+    --dry-run > "$dir/dry.out"
+cat "$dir/dry.out"
+grep -q "^prompts: 21 set-ups" "$dir/dry.out"
+grep -q "^free disk at $dir: " "$dir/dry.out"
+grep -q "^dry run: the plan fits the rig's limits$" "$dir/dry.out"
+test ! -e "$dir/new"
+
+# A plan beyond the mirror's limits (edited by hand): refused, naming the field and the limit.
+mkdir "$dir/bad"
+cp "$dir/plan/camera.yaml" "$dir/bad/"
+sed 's/fast: {frequency_hz: 205,/fast: {frequency_hz: 260,/' "$dir/plan/session.yaml" \
+  > "$dir/bad/session.yaml"
+if "$msmcal" session run --rig "$src/config/rig.yaml" --plan "$dir/bad" --out "$dir/new/s2" \
+    --dry-run > "$dir/err" 2>&1; then
+  echo "expected the dry run to refuse a drive outside the window"; exit 1
+fi
+cat "$dir/err"
+grep -q "plan drive: generators.unit1.ch1 (fast_coil): frequency_hz = 260 outside the window \[195, 215\] Hz" "$dir/err"
+test ! -e "$dir/new"
+
+# A rig whose trigger design is over the duty limit: `msmcal plan` refuses, writes nothing.
+sed 's/pulse_width_s: 1.0e-6/pulse_width_s: 1.0e-4/' "$src/config/rig.yaml" > "$dir/duty.yaml"
+if "$msmcal" plan --rig "$dir/duty.yaml" --out "$dir/plan2" > "$dir/err" 2>&1; then
+  echo "expected plan to refuse the duty"; exit 1
+fi
+cat "$dir/err"
+grep -q "duty.yaml:[0-9]*: generators.signals: trigger design: duty = .* exceeds trigger.max_duty = 0.01" "$dir/err"
+test ! -e "$dir/plan2"
+
+# An operator spec that is neither console nor hook:CMD.
+if "$msmcal" session run --rig "$src/config/rig.yaml" --plan "$dir/plan" --out "$dir/new/s3" \
+    --operator robot --dry-run > "$dir/err" 2>&1; then
+  echo "expected a refusal of --operator robot"; exit 1
+fi
+grep -q "\-\-operator = 'robot': must be console or hook:CMD" "$dir/err"
+echo "plan / dry run: ok"
