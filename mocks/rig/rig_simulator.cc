@@ -69,6 +69,21 @@ RigSimulator::RigSimulator(const SimOptions& options)
       motion_(options.mirror),
       hall_(options),
       period_s_(options.PatternPeriodS()) {
+  Build(nullptr);
+}
+
+RigSimulator::RigSimulator(const SimOptions& options, const std::vector<double>& trigger_times_s)
+    : options_(options),
+      motion_(options.mirror),
+      hall_(options),
+      period_s_(options.PatternPeriodS()) {
+  if (trigger_times_s.empty())
+    throw std::invalid_argument("RigSimulator: the given trigger table is empty");
+  Build(&trigger_times_s);
+}
+
+void RigSimulator::Build(const std::vector<double>* trigger_times_s) {
+  const SimOptions& options = options_;
   if (const std::string err = options.Validate(); !err.empty()) throw std::invalid_argument(err);
   const auto& c = options.camera;
   camera_.width = c.width;
@@ -82,7 +97,7 @@ RigSimulator::RigSimulator(const SimOptions& options)
     throw std::invalid_argument("camera: " + err);
   }
   BuildGeometry();
-  BuildFrames();
+  BuildFrames(trigger_times_s);
 }
 
 void RigSimulator::BuildGeometry() {
@@ -138,29 +153,41 @@ void RigSimulator::BuildGeometry() {
   c2_from_world_ = LookAt(Vec(c.c2_centre_mm), Vec(c.c2_target_mm));
 
   // Sliding board poses: centred on the central incident line, facing the source.
+  central_incident_ = v_c;
+  world_from_sliding_.clear();
+  for (int l = 0; l < options_.step1.poses; ++l) world_from_sliding_.push_back(SlidingPose(l));
+}
+
+geometry::Rigid3d RigSimulator::SlidingPose(int l, std::optional<double> distance_mm,
+                                            std::optional<double> tilt_deg) const {
   const auto& s1 = options_.step1;
   const auto& sb = options_.sliding_board;
-  world_from_sliding_.clear();
-  for (int l = 0; l < s1.poses; ++l) {
-    const double s = s1.nearest_mm + l * (s1.farthest_mm - s1.nearest_mm) / (s1.poses - 1);
-    const Eigen::Vector3d centre = x_o - s * v_c;
-    const Eigen::Vector3d z = v_c;
-    const Eigen::Vector3d x =
-        (Eigen::Vector3d::UnitY() - Eigen::Vector3d::UnitY().dot(z) * z).normalized();
-    const Eigen::Vector3d y = z.cross(x);
-    Eigen::Matrix3d r;
-    r.col(0) = x;
-    r.col(1) = y;
-    r.col(2) = z;
-    const double sign = (l % 2 == 0) ? 1.0 : -1.0;
-    const double tilt_rad = s1.tilt_deg * kDegToRad;
-    r = Eigen::AngleAxisd(sign * tilt_rad, y).toRotationMatrix() *
-        Eigen::AngleAxisd(0.5 * tilt_rad * (l % 3 - 1), x).toRotationMatrix() * r;
-    const Eigen::Vector3d origin =
-        centre - r * Eigen::Vector3d(0.5 * (sb.cols - 1) * sb.square_mm,
-                                     0.5 * (sb.rows - 1) * sb.square_mm, 0);
-    world_from_sliding_.emplace_back(r, origin);
-  }
+  const auto& g = options_.geometry;
+  const Eigen::Vector3d x_o(g.board_aim_mm[0], g.board_aim_mm[1], -g.mirror_distance_mm);
+  const Eigen::Vector3d& v_c = central_incident_;
+  const double s = distance_mm.value_or(
+      s1.poses > 1 ? s1.nearest_mm + l * (s1.farthest_mm - s1.nearest_mm) / (s1.poses - 1)
+                   : s1.nearest_mm);
+  const Eigen::Vector3d centre = x_o - s * v_c;
+  const Eigen::Vector3d z = v_c;
+  const Eigen::Vector3d x =
+      (Eigen::Vector3d::UnitY() - Eigen::Vector3d::UnitY().dot(z) * z).normalized();
+  const Eigen::Vector3d y = z.cross(x);
+  Eigen::Matrix3d r;
+  r.col(0) = x;
+  r.col(1) = y;
+  r.col(2) = z;
+  // The design alternates the tilt's sign per pose; a given tilt is the signed one.
+  const double sign = (l % 2 == 0) ? 1.0 : -1.0;
+  const double signed_tilt_rad = (tilt_deg ? *tilt_deg : sign * s1.tilt_deg) * kDegToRad;
+  const double tilt_rad = std::abs(signed_tilt_rad);
+  const int m = ((l % 3) + 3) % 3;
+  r = Eigen::AngleAxisd(signed_tilt_rad, y).toRotationMatrix() *
+      Eigen::AngleAxisd(0.5 * tilt_rad * (m - 1), x).toRotationMatrix() * r;
+  const Eigen::Vector3d origin =
+      centre - r * Eigen::Vector3d(0.5 * (sb.cols - 1) * sb.square_mm,
+                                   0.5 * (sb.rows - 1) * sb.square_mm, 0);
+  return geometry::Rigid3d(r, origin);
 }
 
 geometry::Rigid3d RigSimulator::c1_from_sliding(int pose) const {
@@ -273,6 +300,82 @@ Scene RigSimulator::FrameScene(const dataset::Step2Frame& frame) const {
   return Step2Scene(mode, frame.triggers, frame.beams);
 }
 
+Scene RigSimulator::StateScene(const RigState& state,
+                               const std::vector<PulseAtPose>& pulses) const {
+  Scene scene;
+  scene.camera = camera_;
+  const geometry::Rigid3d& cam_from_world = state.camera == 1 ? c1_from_world_ : c2_from_world_;
+  scene.boards.push_back({ToRenderBoard(options_.world_board), cam_from_world});
+  std::optional<geometry::Plane> plate;
+  if (state.world_from_sliding) {
+    const geometry::Rigid3d& w_s = *state.world_from_sliding;
+    scene.boards.push_back({ToRenderBoard(options_.sliding_board), cam_from_world * w_s});
+    plate = geometry::Plane::FromPointNormal(w_s.translation, w_s.RotationMatrix().col(2));
+  }
+  const geometry::Plane board = WorldBoardPlane();
+  // Nearest surface a ray meets: (point, normal, is_mirror).
+  struct Hit {
+    Eigen::Vector3d p;
+    Eigen::Vector3d n;
+    bool mirror = false;
+  };
+  auto nearest = [](const Eigen::Vector3d& o, const Eigen::Vector3d& v,
+                    const std::vector<std::pair<geometry::Plane, bool>>& surfaces) {
+    std::optional<Hit> best;
+    double best_s = 1e300;
+    for (const auto& [plane, is_mirror] : surfaces) {
+      const auto p = geometry::IntersectRayPlane(o, v, plane);
+      if (!p) continue;
+      const double s = (*p - o).dot(v);
+      if (s > 1e-9 && s < best_s) {
+        best_s = s;
+        best = Hit{*p, plane.n, is_mirror};
+      }
+    }
+    return best;
+  };
+  auto add_dot = [&](int beam, int j, const Hit& hit) {
+    const Eigen::Vector3d p_cam = cam_from_world * hit.p;
+    const auto px = camera_.Project(p_cam);
+    if (!px) return;
+    for (const auto& l : scene.labels)
+      if (l.beam == beam && (l.p_in_world - hit.p).norm() < 1e-6) return;  // same spot again
+    render::SceneDot dot;
+    dot.p_in_cam = p_cam;
+    dot.sigma_mm = options_.render.dot_sigma_mm;
+    dot.normal_in_cam = cam_from_world.RotationMatrix() * hit.n;
+    scene.dots.push_back(dot);
+    scene.labels.push_back({beam, j, hit.p, *px});
+  };
+  for (const PulseAtPose& pulse : pulses) {
+    std::vector<std::pair<geometry::Plane, bool>> first;
+    if (plate) first.emplace_back(*plate, false);
+    geometry::Plane mirror;
+    if (state.msm_mounted) {
+      mirror = geometry::WorldPlaneFromPose(world_from_mirror0_, pulse.pose);
+      first.emplace_back(mirror, true);
+    }
+    first.emplace_back(board, false);
+    for (int id : state.unblocked_beams) {
+      if (id < 1 || id > static_cast<int>(beams_.size())) continue;
+      const Eigen::Vector3d& src = sources_[id - 1];
+      const Eigen::Vector3d& v = beams_[id - 1].v;
+      const auto hit = nearest(src, v, first);
+      if (!hit) continue;
+      if (!hit->mirror) {
+        add_dot(id, -1, *hit);
+        continue;
+      }
+      std::vector<std::pair<geometry::Plane, bool>> after;
+      if (plate) after.emplace_back(*plate, false);
+      after.emplace_back(board, false);
+      const auto landed = nearest(hit->p, geometry::ReflectDirection(mirror, v), after);
+      if (landed) add_dot(id, pulse.j, *landed);
+    }
+  }
+  return scene;
+}
+
 std::vector<double> SimpleTriggerTimes(const RigSimulator& sim) {
   const auto& opt = sim.options().triggers;
   const int n = opt.candidates;
@@ -316,7 +419,7 @@ std::vector<double> SimpleTriggerTimes(const RigSimulator& sim) {
   return times;
 }
 
-void RigSimulator::BuildFrames() {
+void RigSimulator::BuildFrames(const std::vector<double>* trigger_times_s) {
   const auto& s1 = options_.step1;
   const auto& s2 = options_.step2;
   const int beams = options_.beams.count;
@@ -377,9 +480,9 @@ void RigSimulator::BuildFrames() {
   auto file = [](const char* step, size_t i) { return plan::FrameFile(step, i); };
 
   // Triggers.
-  const std::vector<double> times = SimpleTriggerTimes(*this);
+  const std::vector<double> times = trigger_times_s ? *trigger_times_s : SimpleTriggerTimes(*this);
   for (size_t j = 0; j < times.size(); ++j) triggers_.push_back({static_cast<int>(j), times[j]});
-  if (triggers_.size() < 3) {
+  if (!trigger_times_s && triggers_.size() < 3) {
     throw std::runtime_error("only " + std::to_string(triggers_.size()) +
                              " trigger times keep all dots on the board and apart; check geometry, "
                              "triggers.min_separation_px and the drive amplitudes");

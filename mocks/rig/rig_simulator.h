@@ -60,11 +60,31 @@ struct Scene {
 class RigSimulator;
 std::vector<double> SimpleTriggerTimes(const RigSimulator& sim);
 
+// The physical set-up of the rig at one instant, for scenes that follow from the rig's state
+// rather than from the simulator's own plan (the digital twin, simulation/twin/physical_twin.h).
+struct RigState {
+  int camera = 2;           // 1: the camera at C1, 2: at C2
+  bool msm_mounted = true;  // false: the beams travel on past the mirror's place
+  std::optional<geometry::Rigid3d> world_from_sliding;  // the sliding plate, when mounted
+  std::vector<int> unblocked_beams;                     // beam ids (1-based) that reach the rig
+};
+
+// One laser pulse that fired during an exposure: its trigger index (-1: none) and the mirror's
+// pose at its time (ignored when the MSM is not mounted).
+struct PulseAtPose {
+  int j = -1;
+  geometry::MirrorPose pose;
+};
+
 class RigSimulator {
  public:
   // Builds the rig. Throws std::invalid_argument with Validate()'s message, or
   // std::runtime_error when the geometry cannot be built (e.g. unreachable spanning angle).
   explicit RigSimulator(const SimOptions& options);
+  // The same rig with a given trigger table (ascending generator times within one pattern period,
+  // e.g. the pulses a generator actually fires) instead of SimpleTriggerTimes; step 2 frames are
+  // built over it. Throws as above, or std::invalid_argument for an empty table.
+  RigSimulator(const SimOptions& options, const std::vector<double>& trigger_times_s);
 
   const SimOptions& options() const { return options_; }
   const geometry::CameraModel& camera() const { return camera_; }
@@ -102,6 +122,19 @@ class RigSimulator {
                    const std::vector<int>& beam_ids) const;
   Scene FrameScene(const dataset::Step1Frame& frame) const;
   Scene FrameScene(const dataset::Step2Frame& frame) const;
+  // Render from state: what the camera of `state` sees when `pulses` fire during its exposure.
+  // Each pulse sends every unblocked beam from its source: it lands on the sliding plate when
+  // the plate is in its way (before the mirror, or after it), else it is reflected by the mirror
+  // at the pulse's pose (MSM mounted) and lands on the plate or the world board. Dots that fall
+  // on the same spot (the same pose repeating over several pattern periods) are one dot.
+  // Labels carry the pulse's j when the MSM reflected the beam, -1 otherwise.
+  Scene StateScene(const RigState& state, const std::vector<PulseAtPose>& pulses) const;
+  // world_from_sliding of step 1 pose `pose` (0-based, any index: the design's spacing
+  // continues), optionally placed at distance_mm from X_O along the central incident beam and
+  // tilted by tilt_deg (signed, as sessions/rig's SlidingPlate::TiltDeg gives it; by default the
+  // design's tilt with its sign alternating per pose).
+  geometry::Rigid3d SlidingPose(int pose, std::optional<double> distance_mm = std::nullopt,
+                                std::optional<double> tilt_deg = std::nullopt) const;
 
   // The trigger table and the frame lists (computed at construction).
   const std::vector<dataset::Trigger>& triggers() const { return triggers_; }
@@ -130,8 +163,9 @@ class RigSimulator {
                         double margin_px) const;
 
  private:
+  void Build(const std::vector<double>* trigger_times_s);
   void BuildGeometry();
-  void BuildFrames();
+  void BuildFrames(const std::vector<double>* trigger_times_s);
   bool InImage(const Eigen::Vector2d& px, double margin_px) const;
 
   SimOptions options_;
@@ -146,6 +180,7 @@ class RigSimulator {
   geometry::Rigid3d c1_from_world_;
   geometry::Rigid3d c2_from_world_;
   std::vector<geometry::Rigid3d> world_from_sliding_;
+  Eigen::Vector3d central_incident_ = Eigen::Vector3d::UnitX();  // v_c
   std::vector<dataset::Trigger> triggers_;
   std::vector<dataset::Step1Frame> step1_;
   std::vector<dataset::Step2Frame> step2_;

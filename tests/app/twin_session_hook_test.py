@@ -1,0 +1,118 @@
+#!/usr/bin/python3
+"""A lab session rehearsed on the twin (issue 20), end to end through the msmcal binary.
+
+`msmcal plan --rig RIG` designs the plan; `msmcal mock rig --rig RIG --hands SOCK` serves the
+twin; `msmcal session run --rig RIG --plan P --operator "hook:msmcal mock hands --socket SOCK"`
+runs the whole session against it through the real drivers, the hook performing every set-up on
+the twin and finally asking for its truth. Checked: every set-up and the truth request confirmed
+(exit 0), every step 1 frame accepted by the quality gate (dots on the sliding plate, boards
+found),
+both Hall recordings with readings at 1 kHz and clock edges at the pattern rate, and the truth's
+trigger table is the plan's (what the orchestrator uploaded, decoded from the arb by the twin).
+Runs in its own network namespace (ports 15025/15026, GigE Vision 3956).
+
+usage: twin_session_hook_test.py MSMCAL SOURCE_DIR
+"""
+import os
+import re
+import select
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+
+
+def fail(msg):
+    print("FAIL: " + msg, flush=True)
+    sys.exit(1)
+
+
+def main():
+    msmcal, source = sys.argv[1], sys.argv[2]
+    tmp = tempfile.mkdtemp(prefix="twin_session_")
+    sock = os.path.join(tmp, "hands.sock")
+    rig = os.path.join(tmp, "rig.yaml")
+    text = open(os.path.join(source, "config", "rig.yaml")).read()
+    # The rig file's camera (the gate is tuned for its ~20 px squares), short Hall recordings,
+    # one exposure per step 1 frame, fewer triggers and step 2 frames.
+    for a, b in [("device: /dev/ttyACM0", "device: " + os.path.join(tmp, "tty")),
+                 ("hall_background_s: 12", "hall_background_s: 1"),
+                 ("hall_actual_min_s: 15", "hall_actual_min_s: 1"),
+                 ("  exposures: 3 ", "  exposures: 1 "),
+                 ("spacing: 0.25", "spacing: 0.6"),
+                 ("neutral_frames: 2", "neutral_frames: 1"),
+                 ("fast_only_frames: 3", "fast_only_frames: 1")]:
+        if a not in text:
+            fail("config/rig.yaml has no '%s'" % a)
+        text = text.replace(a, b, 1)
+    open(rig, "w").write(text)
+    plan = os.path.join(tmp, "plan")
+    p = subprocess.run([msmcal, "plan", "--rig", rig, "--out", plan], capture_output=True,
+                       text=True, timeout=120)
+    if p.returncode != 0:
+        fail("plan: %s %s" % (p.stdout, p.stderr))
+    plan_yaml = open(os.path.join(plan, "session.yaml")).read()
+
+    twin = subprocess.Popen([msmcal, "mock", "rig", "--rig", rig, "--hands", sock,
+                             "--exposure", "0.3"], stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    try:
+        buf, lines, fd = b"", [], twin.stdout.fileno()
+        deadline = time.monotonic() + 60
+        while "twin: ready" not in lines:
+            r, _, _ = select.select([fd], [], [], max(0.0, deadline - time.monotonic()))
+            if not r:
+                fail("the twin did not get ready: %r" % lines)
+            chunk = os.read(fd, 4096)
+            if not chunk:
+                fail("the twin exited: %s" % twin.stderr.read().decode())
+            buf += chunk
+            *done, buf = buf.split(b"\n")
+            lines += [l.decode().strip() for l in done]
+        out = os.path.join(tmp, "session")
+        p = subprocess.run([msmcal, "session", "run", "--rig", rig, "--plan", plan, "--out", out,
+                            "--operator", "hook:%s mock hands --socket %s" % (msmcal, sock)],
+                           capture_output=True, text=True, timeout=600)
+        log = p.stdout + p.stderr
+    finally:
+        twin.send_signal(signal.SIGTERM)
+        try:
+            twin.wait(timeout=20)
+        except subprocess.TimeoutExpired:
+            twin.kill()
+            fail("the twin did not stop on SIGTERM")
+
+    setups = re.findall(r"hook: set-up (\d+)/(\d+) \((\w+)\): exit status (\d+)", log)
+    if not setups or any(s[3] != "0" for s in setups) or int(setups[-1][0]) != int(setups[-1][1]):
+        fail("set-ups not all confirmed: %r\n%s" % (setups, log[-3000:]))
+    if "hook: truth request: exit status 0" not in log:
+        fail("truth request not confirmed\n" + log[-3000:])
+    m = re.search(r"session written: (\d+)/(\d+) step-1", log)
+    if not m or m.group(1) != m.group(2):
+        fail("step 1 frames: %s\n%s" % (m.group(0) if m else None, log[-3000:]))
+    for reason in re.findall(r"step 1: frame \d+/\d+ \S+ REJECTED: (.*)", log):
+        fail("step 1 frame rejected: " + reason)
+    for name in ["background", "actual"]:
+        h = re.search(r"Hall: %s (\d+) readings, (\d+) clock edges" % name, log)
+        if not h or int(h.group(1)) < 900 or int(h.group(2)) < 4:
+            fail("Hall %s recording: %s" % (name, h.group(0) if h else None))
+        readings, edges = int(h.group(1)), int(h.group(2))
+        if abs(edges - readings / 200.0) > 2:  # 1 kHz readings, 5 Hz clock (T = 0.2 s)
+            fail("Hall %s: %d edges for %d readings" % (name, edges, readings))
+    # The truth's trigger table is the plan's (decoded by the twin from the uploaded arb).
+    truth = os.path.join(out, "truth", "mirror_planes.csv")
+    if not os.path.exists(truth):
+        fail("no truth at " + truth)
+    got = sorted(float(l.split(",")[1]) for l in open(truth).read().splitlines()[1:] if l)
+    want = sorted(float(x) for x in re.findall(r"\{j: \d+, t_s: ([0-9.e+-]+)\}", plan_yaml))
+    if len(want) < 3 or len(got) != len(want):
+        fail("truth has %d triggers, the plan %d" % (len(got), len(want)))
+    worst = max(abs(a - b) for a, b in zip(got, want))
+    if worst > 1e-6:  # half an arb sample at most
+        fail("truth trigger times differ from the plan's by %g s" % worst)
+    print("%d set-ups, %s, truth: %d triggers (max %.2g s from the plan)" %
+          (len(setups), m.group(0), len(got), worst))
+    print("PASS")
+
+
+main()
