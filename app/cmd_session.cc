@@ -11,7 +11,8 @@
 // figures; annotated previews in DIR/previews), journalled in DIR/session.db, then solved and
 // the Hall sensor calibrated. The plan folder holds session.yaml and camera.yaml as the
 // interchange format defines them (boards, beams, drive, clock, the trigger table and the frames
-// to take). Interrupted, it continues with `msmcal resume DIR`.
+// to take). Interrupted, it continues with `msmcal resume DIR`. `--ui web[:PORT]`: the operator
+// answers on the live view's page in a browser instead (app/web_ui.h).
 #include <CLI/CLI.hpp>
 #include <chrono>
 #include <cstdio>
@@ -24,6 +25,7 @@
 
 #include "app/command_registry.h"
 #include "app/session_flow.h"
+#include "app/web_ui.h"
 #include "drivers/generator/rig_config.h"
 #include "drivers/hall_mcu/hall_mcu_config.h"
 #include "sessions/interchange/interchange_io.h"
@@ -69,6 +71,7 @@ struct SessionRunArgs {
   std::string out;
   std::string rig_id, mirror_id, note;
   double frame_rate_hz = 10.0;
+  WebUiArgs web;  // --ui web[:PORT], --ui-bind
 };
 
 void RunSessionRun(const SessionRunArgs& args) {
@@ -96,6 +99,9 @@ void RunSessionRun(const SessionRunArgs& args) {
   lab.rig_id = args.rig_id;
   lab.mirror_id = args.mirror_id;
   lab.note = args.note;
+  std::unique_ptr<WebUi> web;
+  if (args.web.enabled()) web = std::make_unique<WebUi>(args.web);
+  lab.web = web.get();
   std::vector<std::string> notes;
   lab.progress = [&](const std::string& line) {
     const double t =
@@ -103,8 +109,15 @@ void RunSessionRun(const SessionRunArgs& args) {
     std::printf("[%6.1f s] %s\n", t, line.c_str());
     std::fflush(stdout);
     notes.push_back(line);
+    if (web) web->AddLogLine(line);
   };
-  (void)RunLabAcquisition(out, lab);
+  try {
+    (void)RunLabAcquisition(out, lab);
+  } catch (const std::exception& e) {
+    if (web) web->Finished(/*done=*/false, e.what());
+    throw;
+  }
+  if (web) web->Finished(/*done=*/true, "acquisition complete: solving, then the report");
   const FinishResult finished = FinishSession(out, FinishOptions{}, &notes);
   const orchestrator::SessionReport report =
       orchestrator::BuildSessionReport(out, notes, simulation::SimTruthSource());
@@ -143,6 +156,7 @@ void AddSessionCommands(CLI::App& app) {
   run->add_option("--mirror-id", run_args->mirror_id, "Mirror identifier (catalogue)");
   run->add_option("--note", run_args->note, "Free text (catalogue)");
   run->add_option("--frame-rate", run_args->frame_rate_hz, "Camera frame rate, Hz");
+  AddWebUiOptions(run, &run_args->web);
   run->callback([run_args] { RunSessionRun(*run_args); });
 }
 
