@@ -155,7 +155,7 @@ struct LiveServer::Impl {
               *last = view->version();
               msg = "retry: 1000\ndata: " + view->StateJson() + "\n\n";
             } else {
-              const uint64_t v = view->WaitForChange(*last, std::chrono::milliseconds(1000));
+              const uint64_t v = view->WaitForChange(*last, view->keepalive_interval());
               if (stopping.load()) {
                 sink.done();
                 return true;

@@ -6,7 +6,7 @@
 //   GET  /                      the page (index.html; live.js, live.css beside it)
 //   GET  /api/state             the LiveView's state (JSON, docs/guided.md "Live view")
 //   GET  /api/events            server-sent events: one `data: <state JSON>` per change,
-//                               `: keepalive` comments every second otherwise;
+//                               `: keepalive` comments otherwise (at least every second);
 //                               ?controller=TOKEN keeps that controller's lease while open
 //   GET  /api/image.jpg         the latest annotated camera image (404 before the first)
 //   POST /api/claim             ?previous=TOKEN: become the controlling page -> {"controller"}

@@ -221,6 +221,10 @@ void LiveView::Close() {
   Changed();
 }
 
+std::chrono::milliseconds LiveView::keepalive_interval() const {
+  return std::min(std::chrono::milliseconds(1000), options_.controller_lease / 4);
+}
+
 bool LiveView::closed() const {
   std::lock_guard<std::mutex> lock(mu_);
   return closed_;

@@ -127,6 +127,9 @@ class LiveView {
   uint64_t WaitForChange(uint64_t version, std::chrono::milliseconds timeout) const;
   uint64_t version() const;
   bool closed() const;
+  // How often an event stream writes at the latest (a keepalive when nothing changed): well
+  // inside the controller's lease, at most a second.
+  std::chrono::milliseconds keepalive_interval() const;
 
  private:
   struct Figures;
