@@ -133,7 +133,9 @@ function render() {
       : 'not recording' + (rig.hall_readings ? ' (last: ' + rig.hall_readings + ' readings)' : '');
   $('rig-lost').textContent = String(rig.hall_lost);
   $('rig-disk').textContent = bytes(rig.disk_free_bytes);
-  $('log').textContent = state.log.join('\n');
+  const log = $('log');
+  log.textContent = state.log.join('\n');
+  log.scrollTop = log.scrollHeight;  // newest line in view
   refreshImage();
 }
 
