@@ -77,6 +77,8 @@ struct SessionRunArgs {
 void RunSessionRun(const SessionRunArgs& args) {
   namespace fs = std::filesystem;
   const auto start = std::chrono::steady_clock::now();
+  std::unique_ptr<WebUi> web;  // --ui checked before any file is read
+  if (args.web.enabled()) web = std::make_unique<WebUi>(args.web);
   const fs::path out = fs::absolute(args.out);
   if (fs::exists(out) && !fs::is_empty(out))
     throw std::runtime_error(out.string() +
@@ -99,8 +101,6 @@ void RunSessionRun(const SessionRunArgs& args) {
   lab.rig_id = args.rig_id;
   lab.mirror_id = args.mirror_id;
   lab.note = args.note;
-  std::unique_ptr<WebUi> web;
-  if (args.web.enabled()) web = std::make_unique<WebUi>(args.web);
   lab.web = web.get();
   std::vector<std::string> notes;
   lab.progress = [&](const std::string& line) {
