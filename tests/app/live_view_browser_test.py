@@ -115,7 +115,8 @@ def fail(msg, child=None, driver=None, out_dir=None):
 def start_browser(profile):
     o = webdriver.ChromeOptions()
     for a in ("--headless=new", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage",
-              "--window-size=1500,1100", "--user-data-dir=" + profile):
+              "--window-size=1500,1100", "--force-prefers-reduced-motion",
+              "--user-data-dir=" + profile):
         o.add_argument(a)
     o.binary_location = "/usr/lib/chromium/chromium"
     return webdriver.Chrome(service=Service("/usr/bin/chromedriver"), options=o)
@@ -134,7 +135,7 @@ def enabled(driver, element_id):
 
 def wait(driver, what, seconds, cond, child, out_dir):
     try:
-        return WebDriverWait(driver, seconds, poll_frequency=0.1).until(lambda d: cond(d))
+        return WebDriverWait(driver, seconds, poll_frequency=0.25).until(lambda d: cond(d))
     except Exception:  # noqa: BLE001 - TimeoutException, or the page went away
         fail("page: %s not within %d s (state %r, block %r)" %
              (what, seconds, text(driver, "state"), text(driver, "block")), child, driver, out_dir)
