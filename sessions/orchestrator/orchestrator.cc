@@ -177,6 +177,8 @@ cv::Mat FrameToMat(const camera::Frame& frame) {
 // LiveFrame): constructed just before a RigOperator::Prepare* call, destroyed (stopped and
 // joined) when it returns or throws. Does nothing without a streaming camera or an observer. A
 // camera error ends the pump quietly: the orchestrator's next grab meets it and reports it.
+// The camera is used by one thread at a time, as camera::Camera requires: the pump's thread
+// between the constructor and the join in the destructor, the orchestrator's otherwise.
 class LivePump {
  public:
   LivePump(camera::Camera* cam, const LiveFrameObserver& observer, int step, size_t index) {
