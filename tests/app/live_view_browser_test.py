@@ -169,6 +169,9 @@ def check_outputs_off_in_transcript(path):
 
 def run(msmcal, out_dir, mode):
     os.makedirs(out_dir, exist_ok=True)
+    for old in ("live_view_step1.png", "live_view_failure.png"):  # from an earlier run
+        if os.path.exists(os.path.join(out_dir, old)):
+            os.remove(os.path.join(out_dir, old))
     work = tempfile.mkdtemp(prefix="live_view_browser_")
     driver = None
     child = None
