@@ -159,12 +159,14 @@ void RunSweepCommand(const SweepArgs& args) {
   };
   hooks.inspect = InspectPoint;
   hooks.acquire = [&args](const sweep::SweepPoint& point, const fs::path& folder, bool resume,
-                          const std::function<void(const std::string&)>& log_line) {
+                          const orchestrator::SessionEventObserver& on_event) {
     DemoAcquisitionOptions acq;
     acq.sim = simulation::PointSimOptions(point);
     acq.camera_address = args.camera_address;
     acq.resume = resume;
-    acq.progress = log_line;
+    acq.adjust_options = [on_event](orchestrator::OrchestratorOptions& o) {
+      o.on_event = on_event;
+    };
     acq.note = "msmcal sweep point " + point.name;
     (void)RunDemoAcquisition(folder, acq);
   };

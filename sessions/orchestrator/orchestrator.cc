@@ -551,6 +551,17 @@ bool StepDone(const store::SessionStore& journal, const char* name) {
   return false;
 }
 
+// The event (and log line) of a Hall recording starting.
+SessionEvent HallStarted(const std::string& name, const std::string& device, SessionLog& log) {
+  SessionEvent e;
+  e.kind = SessionEvent::Kind::kHallStarted;
+  e.recording = name;
+  e.device = device;
+  e.text = "Hall: " + name + " recording on " + device + (name == "actual" ? " during step 2" : "");
+  log.Line(e.text);
+  return e;
+}
+
 }  // namespace
 
 SessionJournalState ReadSessionJournal(const fs::path& dir) {
@@ -640,6 +651,19 @@ SessionResult RunSession(const OrchestratorOptions& options, const dataset::Reco
   fs::create_directories(out / "step2");
   fs::create_directories(out / "hall");
   SessionLog log(out / "session_log.txt", progress, journal.get());
+  // One typed event per fact (its log line as `text`); steps change state through set_step.
+  auto emit = [&](SessionEvent e) {
+    if (options.on_event) options.on_event(e);
+  };
+  auto set_step = [&](const char* name, store::StepState state) {
+    journal->SetStep(name, state);
+    SessionEvent e;
+    e.kind = SessionEvent::Kind::kStepState;
+    e.step_name = name;
+    e.state = store::ToString(state);
+    e.text = std::string("step ") + name + ": " + e.state;
+    emit(e);
+  };
   TranscriptFile transcript(out / "generators_transcript.txt");
   transcript.OnStartTrigger([&log] { log.SetGeneratorEpoch(std::chrono::steady_clock::now()); });
   SessionResult result;
@@ -667,7 +691,7 @@ SessionResult RunSession(const OrchestratorOptions& options, const dataset::Reco
   // Rig check. The MCU is checked on options.mcu.device when given (then the operator sets up the
   // background recording when it is due); otherwise the operator's background device is asked
   // for now.
-  journal->SetStep(kStepRigCheck, store::StepState::kRunning);
+  set_step(kStepRigCheck, store::StepState::kRunning);
   OpenInstruments inst;
   std::string background_device = options.mcu.device;
   const bool ask_background_later = !background_device.empty();
@@ -690,7 +714,7 @@ SessionResult RunSession(const OrchestratorOptions& options, const dataset::Reco
     log.Line("refused to start; generator outputs off", "error");
     throw RigCheckError(result.rig_check);
   }
-  journal->SetStep(kStepRigCheck, store::StepState::kDone);
+  set_step(kStepRigCheck, store::StepState::kDone);
   log.Line("rig check passed");
 
   // From here on outputs may be on: safe state on signal, exception and exit; the watchdog for
@@ -717,10 +741,14 @@ SessionResult RunSession(const OrchestratorOptions& options, const dataset::Reco
     const bool ok = rig.SafeState();
     if (ok && watchdog) watchdog->StandDown();
     log.SetGeneratorEpoch(std::nullopt);
-    log.Line(ok ? "safe state: generator outputs off (confirmed)"
-                : "safe state: outputs off NOT confirmed by both generators",
-             ok ? "info" : "error");
+    SessionEvent e;
+    e.kind = SessionEvent::Kind::kSafeState;
+    e.confirmed = ok;
+    e.text = ok ? "safe state: generator outputs off (confirmed)"
+                : "safe state: outputs off NOT confirmed by both generators";
+    log.Line(e.text, ok ? "info" : "error");
     result.safe_state_confirmed = ok;
+    emit(e);
     report_rig(/*outputs_on=*/!ok);
   };
   // Explicit paths below run safe_state() and Disarm() the guard, so the guard's own action runs
@@ -808,13 +836,23 @@ SessionResult RunSession(const OrchestratorOptions& options, const dataset::Reco
       return fo;
     };
     auto note = [&](FrameOutcome fo, size_t i, size_t n, const char* step) {
-      log.Line(std::string(step) + ": frame " + std::to_string(i + 1) + "/" + std::to_string(n) +
-                   " " + fo.file +
-                   (fo.from_journal ? (fo.accepted ? " accepted before the resume (kept)"
-                                                   : " rejected before the resume (kept)")
-                    : fo.accepted   ? " accepted"
-                                    : " REJECTED: " + fo.reason),
-               fo.accepted ? "info" : "warning");
+      SessionEvent e;
+      e.kind = SessionEvent::Kind::kFrameDecided;
+      e.step = step[5] == '1' ? 1 : 2;  // "step 1" | "step 2"
+      e.index = i;
+      e.count = n;
+      e.file = fo.file;
+      e.accepted = fo.accepted;
+      e.from_journal = fo.from_journal;
+      e.reason = fo.reason;
+      e.text = std::string(step) + ": frame " + std::to_string(i + 1) + "/" + std::to_string(n) +
+               " " + fo.file +
+               (fo.from_journal ? (fo.accepted ? " accepted before the resume (kept)"
+                                               : " rejected before the resume (kept)")
+                : fo.accepted   ? " accepted"
+                                : " REJECTED: " + fo.reason);
+      log.Line(e.text, fo.accepted ? "info" : "warning");
+      emit(e);
       result.frames.push_back(fo);
       if (fo.accepted && !fo.from_journal && options.fail_after_frames >= 0 &&
           ++accepted_total > options.fail_after_frames)
@@ -832,7 +870,7 @@ SessionResult RunSession(const OrchestratorOptions& options, const dataset::Reco
 
     // Step 1: sliding plate poses, MSM not mounted.
     if (!StepDone(*journal, kStep1)) {
-      journal->SetStep(kStep1, store::StepState::kRunning);
+      set_step(kStep1, store::StepState::kRunning);
       for (size_t i = 0; i < plan.step1.size(); ++i) {
         const auto& f = plan.step1[i];
         FrameOutcome fo;
@@ -849,7 +887,7 @@ SessionResult RunSession(const OrchestratorOptions& options, const dataset::Reco
         }
         note(fo, i, plan.step1.size(), "step 1");
       }
-      journal->SetStep(kStep1, store::StepState::kDone);
+      set_step(kStep1, store::StepState::kDone);
     } else {
       log.Line("step 1: done before the resume");
       for (const auto& f : plan.step1) {
@@ -871,12 +909,21 @@ SessionResult RunSession(const OrchestratorOptions& options, const dataset::Reco
       journal->SetMeta("hall." + name + ".present", "1");
       journal->SetMeta("hall." + name + ".readings_dropped",
                        std::to_string(r.counts.readings_dropped));
-      log.Line("Hall: " + name + " " + std::to_string(r.counts.readings_delivered) + " readings, " +
-                   std::to_string(r.counts.edges_delivered) + " clock edges, " +
-                   std::to_string(r.counts.driver.readings_lost) + " lost, " +
-                   std::to_string(r.counts.readings_dropped) + " dropped (recorder queue full) (" +
-                   acquisition::ToString(r.end) + ")",
-               r.counts.readings_dropped > 0 ? "warning" : "info");
+      journal->SetMeta("hall." + name + ".readings_lost",
+                       std::to_string(r.counts.driver.readings_lost));
+      SessionEvent e;
+      e.kind = SessionEvent::Kind::kHallDone;
+      e.recording = name;
+      e.readings = r.counts.readings_delivered;
+      e.edges = r.counts.edges_delivered;
+      e.lost = r.counts.driver.readings_lost;
+      e.dropped = r.counts.readings_dropped;
+      e.text = "Hall: " + name + " " + std::to_string(e.readings) + " readings, " +
+               std::to_string(e.edges) + " clock edges, " + std::to_string(e.lost) + " lost, " +
+               std::to_string(e.dropped) + " dropped (recorder queue full) (" +
+               acquisition::ToString(r.end) + ")";
+      log.Line(e.text, e.dropped > 0 ? "warning" : "info");
+      emit(e);
     };
     auto keep_partial = [&](const std::string& name) {
       for (const auto& f : KeepPartialHall(out / "hall", name)) {
@@ -889,7 +936,7 @@ SessionResult RunSession(const OrchestratorOptions& options, const dataset::Reco
 
     // Background Hall recording (mirror top frame removed, coils driven).
     if (!StepDone(*journal, kStepBackground)) {
-      journal->SetStep(kStepBackground, store::StepState::kRunning);
+      set_step(kStepBackground, store::StepState::kRunning);
       keep_partial("background");
       if (ask_background_later) {
         std::string device;
@@ -905,13 +952,13 @@ SessionResult RunSession(const OrchestratorOptions& options, const dataset::Reco
           background_device = device;
         }
       }
-      log.Line("Hall: background recording on " + background_device);
+      emit(HallStarted("background", background_device, log));
       const auto r = RecordHall(*inst.mcu, out / "hall" / "background.csv", options,
                                 options.background_seconds, nullptr);
       result.background_readings = r.counts.readings_delivered;
       result.background_edges = r.counts.edges_delivered;
       hall_done("background", r);
-      journal->SetStep(kStepBackground, store::StepState::kDone);
+      set_step(kStepBackground, store::StepState::kDone);
     } else {
       log.Line("Hall: background recording done before the resume");
     }
@@ -919,7 +966,7 @@ SessionResult RunSession(const OrchestratorOptions& options, const dataset::Reco
 
     // Step 2 with the actual Hall recording running.
     if (!StepDone(*journal, kStep2)) {
-      journal->SetStep(kStep2, store::StepState::kRunning);
+      set_step(kStep2, store::StepState::kRunning);
       keep_partial("actual");
       std::string actual_device;
       {
@@ -929,7 +976,7 @@ SessionResult RunSession(const OrchestratorOptions& options, const dataset::Reco
       hall_mcu::HallMcuOptions link = options.mcu;
       link.device = actual_device;
       auto actual_mcu = Instruments(options).OpenHallSensor(link);
-      log.Line("Hall: actual recording on " + actual_device + " during step 2");
+      emit(HallStarted("actual", actual_device, log));
       const auto r =
           RecordHall(*actual_mcu, out / "hall" / "actual.csv", options, 0.0,
                      [&](const std::function<void()>& check_hall) {
@@ -955,7 +1002,7 @@ SessionResult RunSession(const OrchestratorOptions& options, const dataset::Reco
       result.actual_readings = r.counts.readings_delivered;
       result.actual_edges = r.counts.edges_delivered;
       hall_done("actual", r);
-      journal->SetStep(kStep2, store::StepState::kDone);
+      set_step(kStep2, store::StepState::kDone);
     }
     inst.cam->Stop();
   } catch (const std::exception& e) {
@@ -987,10 +1034,17 @@ SessionResult RunSession(const OrchestratorOptions& options, const dataset::Reco
     throw std::runtime_error("session after quality gates: " + e);
   interchange::WriteRecording(out, rec);
   (void)interchange::ReadRecording(out);  // reads back, Hall files included
-  journal->SetStep(kStepSessionWritten, store::StepState::kDone);
-  log.Line("session written: " + std::to_string(rec.step1.size()) + "/" +
-           std::to_string(plan.step1.size()) + " step-1 and " + std::to_string(rec.step2.size()) +
-           "/" + std::to_string(plan.step2.size()) + " step-2 frames accepted");
+  set_step(kStepSessionWritten, store::StepState::kDone);
+  SessionEvent written;
+  written.kind = SessionEvent::Kind::kSessionWritten;
+  written.step1_accepted = rec.step1.size();
+  written.step2_accepted = rec.step2.size();
+  written.text = "session written: " + std::to_string(rec.step1.size()) + "/" +
+                 std::to_string(plan.step1.size()) + " step-1 and " +
+                 std::to_string(rec.step2.size()) + "/" + std::to_string(plan.step2.size()) +
+                 " step-2 frames accepted";
+  log.Line(written.text);
+  emit(written);
   return result;
 }
 

@@ -36,6 +36,7 @@
 #include "sessions/orchestrator/instruments.h"
 #include "sessions/orchestrator/quality_gate.h"
 #include "sessions/orchestrator/rig_operator.h"
+#include "sessions/orchestrator/session_events.h"
 
 namespace msmcal::store {
 class Clock;
@@ -126,6 +127,9 @@ struct OrchestratorOptions {
   std::function<void(const hall_mcu::HallBatch&)> hall_sink_hook;
   // Called after every gate decision (may be empty).
   FrameObserver on_frame;
+  // Called with every typed event of the session (may be empty): frames decided, Hall
+  // recordings, step states, the safe state (sessions/orchestrator/session_events.h).
+  SessionEventObserver on_event;
   // Frames streamed while the operator is asked (see LiveFrame; may be empty: no pump).
   LiveFrameObserver on_live_frame;
   // The rig's state when it changes (see RigStatus; may be empty).

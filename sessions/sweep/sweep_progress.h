@@ -1,40 +1,16 @@
 #pragma once
-// Progress of a sweep: the orchestrator's log lines read as events, the ETA estimate and the
-// one-line progress format (issue 9: "a progress line (step, ETA, frames, dropped readings)").
-// Pure: times are passed in (seconds of an injected monotonic clock).
+// Progress of a sweep: the orchestrator's typed session events applied to one progress line, the
+// ETA estimate and the line's format (issue 9: "a progress line (step, ETA, frames, dropped
+// readings)"). Pure: times are passed in (seconds of an injected monotonic clock).
 
 #include <cstddef>
 #include <cstdint>
-#include <map>
 #include <optional>
 #include <string>
 
+#include "sessions/orchestrator/session_events.h"
+
 namespace msmcal::sweep {
-
-// One orchestrator log line ("step 1: frame 3/15 step1/0002.png accepted", "Hall: background 2000
-// readings, 10 clock edges, 0 lost (end of data)", ...) as an event. A leading "[  12.345 s] "
-// (session_log.txt) is ignored.
-struct LogEvent {
-  enum class Kind { kOther, kFrame, kHallStart, kHallDone, kSessionWritten };
-  Kind kind = Kind::kOther;
-  int step = 0;                     // kFrame: 1 or 2
-  size_t index = 0, count = 0;      // kFrame: 1-based frame index and frames in the step
-  std::string file;                 // kFrame: "step1/0002.png"
-  bool accepted = false;            // kFrame
-  bool from_journal = false;        // kFrame: recorded before a resume and kept ("... (kept)")
-  std::string recording;            // kHallStart / kHallDone: "background" or "actual"
-  uint64_t readings = 0, lost = 0;  // kHallDone
-};
-LogEvent ParseLogLine(const std::string& line);
-
-// Figures of a point's session from its session_log.txt (all runs of a resumed session appended):
-// the last decision per frame file and the last completed count per Hall recording.
-struct SessionLogFigures {
-  size_t frames_accepted = 0, frames_rejected = 0;
-  uint64_t hall_readings = 0, hall_lost = 0;
-  bool hall_seen = false;  // at least one completed Hall recording was logged
-};
-SessionLogFigures ParseSessionLog(const std::string& text);
 
 // "42 s", "3:05", "1:02:03"; "?" when negative or not finite.
 std::string FormatDuration(double seconds);
@@ -69,8 +45,8 @@ struct ProgressSnapshot {
 // lost 0 | elapsed 1:23 | ETA 2:10" (one line, no newline).
 std::string FormatProgressLine(const ProgressSnapshot& s);
 
-// Updates `s` (step, event, frame and loss counts) from one orchestrator log line; returns false
-// when the line is not a progress event (nothing changed).
-bool ApplyLogLine(const std::string& line, ProgressSnapshot* s);
+// Updates `s` (step, event, frame and loss counts) from one session event; returns false when the
+// event does not change the progress line.
+bool ApplyEvent(const orchestrator::SessionEvent& e, ProgressSnapshot* s);
 
 }  // namespace msmcal::sweep

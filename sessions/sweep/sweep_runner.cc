@@ -139,12 +139,13 @@ SweepOutcome RunSweep(const SweepPlan& plan, const fs::path& dir, const SweepHoo
     std::string failure;
     try {
       if (action != PointAction::kFinish) {
-        hooks.acquire(point, folder, action == PointAction::kResume, [&](const std::string& line) {
-          std::lock_guard<std::mutex> lock(mu);
-          if (!ApplyLogLine(line, &snap)) return;
-          refresh_times();
-          hooks.print(FormatProgressLine(snap), true);
-        });
+        hooks.acquire(point, folder, action == PointAction::kResume,
+                      [&](const orchestrator::SessionEvent& e) {
+                        std::lock_guard<std::mutex> lock(mu);
+                        if (!ApplyEvent(e, &snap)) return;
+                        refresh_times();
+                        hooks.print(FormatProgressLine(snap), true);
+                      });
       }
       {
         std::lock_guard<std::mutex> lock(mu);

@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "sessions/orchestrator/session_events.h"
 #include "sessions/sweep/sweep_plan.h"
 #include "sessions/sweep/sweep_progress.h"
 #include "sessions/sweep/sweep_state.h"
@@ -21,10 +22,10 @@ struct SweepHooks {
   // What is on disk for a point's folder (journal state, results).
   std::function<PointFolderState(const std::filesystem::path& folder)> inspect;
   // Runs (resume = false) or continues (resume = true) the point's acquisition into `folder`;
-  // every orchestrator log line goes to `log_line`. Throws on failure (the message is the
-  // point's failure reason).
+  // every typed session event goes to `on_event` (OrchestratorOptions::on_event). Throws on
+  // failure (the message is the point's failure reason).
   std::function<void(const SweepPoint& point, const std::filesystem::path& folder, bool resume,
-                     const std::function<void(const std::string&)>& log_line)>
+                     const orchestrator::SessionEventObserver& on_event)>
       acquire;
   // The steps after a complete acquisition (solve, Hall calibration), skipping those whose
   // outputs exist. Returns "" on success, else the reason.

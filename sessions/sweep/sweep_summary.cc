@@ -5,13 +5,26 @@
 #include <algorithm>
 #include <cstdio>
 #include <fstream>
+#include <map>
 #include <nlohmann/json.hpp>
 #include <sstream>
 
+#include "sessions/store/session_store.h"
 #include "sessions/sweep/sweep_progress.h"
 
 namespace msmcal::sweep {
 namespace {
+
+// The plan's file name of a journalled frame (rejected frames are stored under rejected/; the
+// orchestrator's quality figures name the plan file).
+std::string PlanFileOf(const store::FrameRecord& r) {
+  try {
+    const nlohmann::json q = nlohmann::json::parse(r.quality_json);
+    if (q.contains("plan_file") && q["plan_file"].is_string()) return q["plan_file"];
+  } catch (const nlohmann::json::exception&) {
+  }
+  return r.file;
+}
 
 namespace fs = std::filesystem;
 
@@ -113,15 +126,22 @@ std::vector<Column> Columns(const SweepPlan& plan, const std::vector<SummaryRow>
 
 PointFigures ReadPointFigures(const fs::path& folder) {
   PointFigures f;
-  {
-    std::ifstream in(folder / "session_log.txt");
-    if (in) {
-      std::stringstream s;
-      s << in.rdbuf();
-      const SessionLogFigures lf = ParseSessionLog(s.str());
-      f.frames_accepted = lf.frames_accepted;
-      f.frames_rejected = lf.frames_rejected;
-      if (lf.hall_seen) f.hall_lost = lf.hall_lost;
+  // The journal's facts (never the log's text): the last decision per plan frame (a rejected
+  // frame is journalled under rejected/), and the Hall readings the MCU reported lost.
+  if (fs::exists(folder / store::kSessionDbName)) {
+    try {
+      const store::SystemClock clock;
+      const auto journal = store::SessionStore::Open(folder, clock, /*read_only=*/true);
+      std::map<std::string, bool> frames;  // plan file -> last decision
+      for (const auto& r : journal->Frames()) frames[PlanFileOf(r)] = r.accepted;
+      for (const auto& [file, ok] : frames) (ok ? f.frames_accepted : f.frames_rejected) += 1;
+      for (const char* name : {"background", "actual"}) {
+        const std::string key = std::string("hall.") + name + ".";
+        if (!journal->GetMeta(key + "present")) continue;
+        const auto lost = journal->GetMeta(key + "readings_lost");
+        f.hall_lost = f.hall_lost.value_or(0) + (lost ? std::stoull(*lost) : 0);
+      }
+    } catch (const std::exception&) {  // an unreadable journal: no figures, as without one
     }
   }
   {

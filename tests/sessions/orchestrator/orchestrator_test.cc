@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cmath>
 #include <csignal>
 #include <cstdlib>
@@ -111,10 +112,52 @@ TEST(Orchestrator, RunsACompleteSessionThroughTheMocksAndTheSolverRecoversTruth)
   DemoRig rig(ro);
   const fs::path dir = FreshDir("e2e");
   OrchestratorOptions options = rig.MakeOrchestratorOptions(dir);
+  std::vector<SessionEvent> events;
+  options.on_event = [&](const SessionEvent& e) { events.push_back(e); };
   std::vector<std::string> progress;
   const SessionResult result = RunSession(
       options, rig.Plan(), rig.world(), [&](const std::string& line) { progress.push_back(line); });
   EXPECT_TRUE(result.rig_check.ok);
+  // Typed events: one per final frame decision (in plan order), both Hall recordings with the
+  // counts of the result, every step's state, the safe state, the folder written last; each
+  // event's text is a line of the log.
+  {
+    using Kind = SessionEvent::Kind;
+    std::vector<std::string> decided, hall_done, steps;
+    for (const auto& e : events) {
+      if (e.kind != Kind::kStepState)  // step states are journalled, not logged
+        EXPECT_NE(std::find(progress.begin(), progress.end(), e.text), progress.end()) << e.text;
+      if (e.kind == Kind::kFrameDecided) {
+        decided.push_back(e.file);
+        EXPECT_TRUE(e.accepted) << e.file;
+        EXPECT_EQ(e.count, e.step == 1 ? rig.Plan().step1.size() : rig.Plan().step2.size());
+      }
+      if (e.kind == Kind::kHallDone) {
+        hall_done.push_back(e.recording);
+        EXPECT_EQ(e.readings, e.recording == "background" ? result.background_readings
+                                                          : result.actual_readings);
+      }
+      if (e.kind == Kind::kStepState) steps.push_back(e.step_name + "=" + e.state);
+    }
+    std::vector<std::string> planned;
+    for (const auto& f : rig.Plan().step1) planned.push_back(f.file);
+    for (const auto& f : rig.Plan().step2) planned.push_back(f.file);
+    EXPECT_EQ(decided, planned);
+    EXPECT_EQ(hall_done, (std::vector<std::string>{"background", "actual"}));
+    EXPECT_EQ(steps, (std::vector<std::string>{
+                         "rig_check=running", "rig_check=done", "step1=running", "step1=done",
+                         "hall_background=running", "hall_background=done", "step2=running",
+                         "step2=done", "session_written=done"}));
+    ASSERT_GE(events.size(), 2u);
+    EXPECT_EQ(events[events.size() - 2].kind, Kind::kStepState);
+    EXPECT_EQ(events.back().kind, Kind::kSessionWritten);
+    EXPECT_EQ(events.back().step1_accepted, rig.Plan().step1.size());
+    const auto safe = std::find_if(events.begin(), events.end(), [](const SessionEvent& e) {
+      return e.kind == Kind::kSafeState;
+    });
+    ASSERT_NE(safe, events.end());
+    EXPECT_TRUE(safe->confirmed);
+  }
   EXPECT_TRUE(result.safe_state_confirmed);
   EXPECT_FALSE(rig.generators().unit(1).AnyOutputOn());
   EXPECT_FALSE(rig.generators().unit(2).AnyOutputOn());

@@ -7,10 +7,12 @@
 #include <filesystem>
 #include <fstream>
 #include <limits>
+#include <opencv2/core.hpp>
 #include <set>
 #include <sstream>
 #include <string>
 
+#include "sessions/store/session_store.h"
 #include "sessions/sweep/sweep_plan.h"
 #include "sessions/sweep/sweep_progress.h"
 #include "sessions/sweep/sweep_runner.h"
@@ -22,6 +24,44 @@ namespace msmcal::sweep {
 namespace {
 
 namespace fs = std::filesystem;
+using orchestrator::SessionEvent;
+
+// A session journal as the orchestrator leaves it: frames (plan file, accepted; a rejected frame
+// is stored under rejected/ with its plan file in the quality figures) and the Hall recordings'
+// lost counts. Adds to an existing journal (a resumed session); a plan file already journalled
+// is not recorded again.
+void JournalFrames(const fs::path& dir, const std::vector<std::pair<std::string, bool>>& frames,
+                   const std::map<std::string, int>& hall_lost = {}) {
+  const store::FakeClock clock(1'000'000'000, 1'000'000);
+  std::unique_ptr<store::SessionStore> j = fs::exists(dir / store::kSessionDbName)
+                                               ? store::SessionStore::Open(dir, clock)
+                                               : store::SessionStore::Create(dir, {}, clock);
+  std::set<std::string> have;
+  for (const auto& r : j->Frames()) have.insert(r.file);
+  for (const auto& [file, ok] : frames) {
+    store::FrameRecord r;
+    r.step = file.substr(0, 5);
+    r.file = ok ? file : "rejected/" + r.step + "_" + file.substr(6);
+    if (have.count(r.file)) continue;
+    r.accepted = ok;
+    r.quality_json = "{\"plan_file\": \"" + file + "\"}";
+    j->AddFrame(r, cv::Mat(2, 2, CV_8UC1, cv::Scalar(0)));
+  }
+  for (const auto& [name, lost] : hall_lost) {
+    j->SetMeta("hall." + name + ".present", "1");
+    j->SetMeta("hall." + name + ".readings_lost", std::to_string(lost));
+  }
+}
+
+SessionEvent FrameEvent(int step, size_t index, size_t count, bool accepted) {
+  SessionEvent e;
+  e.kind = SessionEvent::Kind::kFrameDecided;
+  e.step = step;
+  e.index = index;
+  e.count = count;
+  e.accepted = accepted;
+  return e;
+}
 
 // Plans over the simulator's options, as `msmcal sweep` reads them.
 SweepPlan ParseSimPlan(const std::string& text, const std::string& source, const fs::path& dir) {
@@ -229,40 +269,21 @@ TEST(SweepState, RoundTripsAndNamesMalformedFields) {
   }
 }
 
-TEST(SweepProgress, ParsesOrchestratorLines) {
-  LogEvent e = ParseLogLine("[   3.250 s] step 2: frame 4/9 step2/0003.png REJECTED: 2 dots");
-  EXPECT_EQ(e.kind, LogEvent::Kind::kFrame);
-  EXPECT_EQ(e.step, 2);
-  EXPECT_EQ(e.index, 4u);
-  EXPECT_EQ(e.count, 9u);
-  EXPECT_EQ(e.file, "step2/0003.png");
-  EXPECT_FALSE(e.accepted);
-  e = ParseLogLine("Hall: background 2000 readings, 10 clock edges, 3 lost (end of data)");
-  EXPECT_EQ(e.kind, LogEvent::Kind::kHallDone);
-  EXPECT_EQ(e.recording, "background");
-  EXPECT_EQ(e.readings, 2000u);
-  EXPECT_EQ(e.lost, 3u);
-  e = ParseLogLine("step 1: frame 2/3 step1/0001.png rejected before the resume (kept)");
-  EXPECT_EQ(e.kind, LogEvent::Kind::kFrame);
-  EXPECT_FALSE(e.accepted);
-  EXPECT_TRUE(e.from_journal);
-  EXPECT_EQ(ParseLogLine("Hall: actual recording on /dev/pts/3 during step 2").kind,
-            LogEvent::Kind::kHallStart);
-  EXPECT_EQ(ParseLogLine("rig check passed").kind, LogEvent::Kind::kOther);
-
-  // A resumed session's log: the last decision per file and per recording count.
-  const SessionLogFigures f = ParseSessionLog(
-      "[ 1.0 s] step 1: frame 1/2 step1/0000.png accepted\n"
-      "[ 1.1 s] step 1: frame 2/2 step1/0001.png REJECTED: blur\n"
-      "[ 2.0 s] Hall: background 100 readings, 1 clock edges, 4 lost (stopped)\n"
-      "[ 0.1 s] step 1: frame 1/2 step1/0000.png accepted before the resume (kept)\n"
-      "[ 0.2 s] step 1: frame 2/2 step1/0001.png accepted\n"
-      "[ 0.5 s] Hall: background 2000 readings, 10 clock edges, 1 lost (end of data)\n"
-      "[ 0.9 s] Hall: actual 2500 readings, 12 clock edges, 2 lost (stopped)\n");
+// A resumed session's figures come from its journal: one decision per plan frame, the Hall
+// readings lost per recording (never from the log's text).
+TEST(SweepProgress, PointFiguresComeFromTheJournal) {
+  const fs::path dir = FreshDir("journal_figures");
+  JournalFrames(dir, {{"step1/0000.png", true}, {"step1/0001.png", false}}, {{"background", 4}});
+  JournalFrames(dir, {{"step1/0000.png", true}, {"step2/0000.png", true}},
+                {{"background", 1}, {"actual", 2}});
+  const PointFigures f = ReadPointFigures(dir);
   EXPECT_EQ(f.frames_accepted, 2u);
-  EXPECT_EQ(f.frames_rejected, 0u);
-  EXPECT_EQ(f.hall_lost, 3u);
-  EXPECT_EQ(f.hall_readings, 4500u);
+  EXPECT_EQ(f.frames_rejected, 1u);
+  EXPECT_EQ(f.hall_lost.value_or(99), 3u);
+  // No journal: no frame figures, no Hall figure.
+  const PointFigures none = ReadPointFigures(FreshDir("no_journal"));
+  EXPECT_EQ(none.frames_accepted + none.frames_rejected, 0u);
+  EXPECT_FALSE(none.hall_lost.has_value());
 }
 
 TEST(SweepProgress, EtaAndTheProgressLine) {
@@ -283,10 +304,19 @@ TEST(SweepProgress, EtaAndTheProgressLine) {
   s.points = 4;
   s.label = "fast.frequency_hz=205 r0";
   s.step = "start";
-  EXPECT_TRUE(ApplyLogLine("step 1: frame 3/15 step1/0002.png accepted", &s));
-  EXPECT_FALSE(ApplyLogLine("rig check passed", &s));
-  EXPECT_TRUE(ApplyLogLine("Hall: background 2000 readings, 10 clock edges, 5 lost (end)", &s));
-  EXPECT_TRUE(ApplyLogLine("step 2: frame 1/8 step2/0000.png accepted", &s));
+  EXPECT_TRUE(ApplyEvent(FrameEvent(1, 2, 15, true), &s));
+  SessionEvent step;
+  step.kind = SessionEvent::Kind::kStepState;
+  EXPECT_FALSE(ApplyEvent(step, &s));
+  SessionEvent hall;
+  hall.kind = SessionEvent::Kind::kHallDone;
+  hall.recording = "background";
+  hall.readings = 2000;
+  hall.lost = 5;
+  EXPECT_TRUE(ApplyEvent(hall, &s));
+  EXPECT_EQ(s.step, "Hall background");
+  EXPECT_EQ(s.event, "2000 readings");
+  EXPECT_TRUE(ApplyEvent(FrameEvent(2, 0, 8, true), &s));
   s.elapsed_s = 83;
   s.eta_s = 130;
   EXPECT_EQ(FormatProgressLine(s),
@@ -298,11 +328,9 @@ TEST(SweepProgress, EtaAndTheProgressLine) {
 
 TEST(SweepSummary, ReadsFiguresAndWritesTheTable) {
   const fs::path dir = FreshDir("summary");
-  WriteText(dir / "session_log.txt",
-            "[ 1.0 s] step 1: frame 1/1 step1/0000.png accepted\n"
-            "[ 2.0 s] step 2: frame 1/2 step2/0000.png accepted\n"
-            "[ 2.1 s] step 2: frame 2/2 step2/0001.png REJECTED: x\n"
-            "[ 3.0 s] Hall: actual 10 readings, 1 clock edges, 2 lost (stopped)\n");
+  JournalFrames(dir,
+                {{"step1/0000.png", true}, {"step2/0000.png", true}, {"step2/0001.png", false}},
+                {{"actual", 2}});
   WriteText(dir / "results" / "summary.json",
             R"({"mirror_poses": {"validation_rms_deg": 0.0123, "validation_rms_px": 0.5,
                 "baseline_validation_rms_deg": 0.05}})");
@@ -369,16 +397,11 @@ struct FakeRig {
       return s;
     };
     h.acquire = [this](const SweepPoint& p, const fs::path& folder, bool resume,
-                       const std::function<void(const std::string&)>& log) {
+                       const orchestrator::SessionEventObserver& on_event) {
       calls.push_back("acquire " + p.name.substr(0, 4) + " resume=" + std::to_string(resume));
-      fs::create_directories(folder);
-      WriteText(folder / "session.db", "journal");
-      std::ofstream logf(folder / "session_log.txt", std::ios::app);
-      for (int i = 1; i <= 2; ++i) {
-        const std::string line = "step 1: frame " + std::to_string(i) + "/2 step1/000" +
-                                 std::to_string(i - 1) + ".png accepted";
-        logf << "[ 0.0 s] " << line << "\n";
-        log(line);
+      for (size_t i = 0; i < 2; ++i) {
+        JournalFrames(folder, {{"step1/000" + std::to_string(i) + ".png", true}});
+        on_event(FrameEvent(1, i, 2, true));
         clock_s += 10;
       }
       if (fail_acquire.count(p.name.substr(0, 4)))
@@ -406,7 +429,7 @@ TEST(SweepRunner, GoesOnAfterAFailureAndResumesWithoutRedoingWork) {
   rig.fail_finish = {"p003"};
   // p004 was killed mid-acquisition by an earlier run: its journal exists, no session.yaml.
   const auto points = ExpandPoints(plan);
-  WriteText(dir / points[3].name / "session.db", "journal");
+  JournalFrames(dir / points[3].name, {});
   WriteText(dir / "sweep.yaml", SweepPlanToYaml(plan));
   const SweepOutcome first = RunSweep(plan, dir, rig.Hooks());
   EXPECT_EQ(first.done, 2u);
