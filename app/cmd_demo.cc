@@ -9,6 +9,8 @@
 // `--guided`: the operator at the rig is prompted on this terminal for every set-up (the guided
 // mode, docs/guided.md): the answers go to a ConsoleOperator in front of the simulated world;
 // live gate figures are printed and annotated previews written to DIR/previews.
+// `--guided --ui web[:PORT]`: the same session answered from the live view's page in a browser
+// (app/web_ui.h, docs/guided.md "Live view") instead of this terminal.
 #include <CLI/CLI.hpp>
 #include <chrono>
 #include <cstdio>
@@ -21,6 +23,7 @@
 
 #include "app/command_registry.h"
 #include "app/session_flow.h"
+#include "app/web_ui.h"
 #include "mocks/rig/sim_options.h"
 #include "sessions/interchange/interchange_io.h"
 #include "sessions/orchestrator/orchestrator.h"
@@ -43,6 +46,7 @@ struct DemoArgs {
   bool guided = false;
   std::vector<int> generator_ports;     // --generator-ports P1,P2 (docs/fault-campaign.md)
   std::vector<std::string> mock_faults;  // --mock-fault
+  WebUiArgs web;  // --ui web[:PORT], --ui-bind (with --guided)
 };
 
 // --guided: a ConsoleOperator on stdin/stdout in front of the simulated world (with the
@@ -74,14 +78,31 @@ void RunDemo(const DemoArgs& args) {
       "camera on %s, Hall MCU on a pty)...\n",
       acq.camera_address.c_str());
   std::fflush(stdout);
+  std::unique_ptr<WebUi> web;
+  if (args.web.enabled()) {
+    if (!args.guided) throw CLI::ValidationError("--ui", "--ui web needs --guided");
+    web = std::make_unique<WebUi>(args.web);
+  }
   std::vector<std::string> notes;
   acq.progress = [&](const std::string& line) {
     std::printf("[%6.1f s] %s\n", elapsed(), line.c_str());
     std::fflush(stdout);
     notes.push_back(line);
+    if (web) web->AddLogLine(line);
   };
-  if (args.guided) MakeGuided(acq);
-  const orchestrator::SessionResult session = RunDemoAcquisition(out, acq);
+  if (web)
+    MakeGuidedWeb(acq, web.get());
+  else if (args.guided)
+    MakeGuided(acq);
+  orchestrator::SessionResult session;
+  try {
+    session = RunDemoAcquisition(out, acq);
+  } catch (const std::exception& e) {
+    if (web) web->Finished(/*done=*/false, e.what());
+    throw;
+  }
+  if (web)
+    web->Finished(/*done=*/true, "acquisition complete: solving, then the report (see the log)");
   size_t rejected = 0;
   for (const auto& f : session.frames) rejected += f.accepted ? 0 : 1;
   std::printf(
@@ -107,6 +128,7 @@ void RunDemo(const DemoArgs& args) {
       out, {/*session_process=*/true, notes}, simulation::SimTruthSource());
   std::printf("\n%s", report.text.c_str());
   std::printf("\nreport: %s   (total %.1f s)\n", (out / "report.html").string().c_str(), elapsed());
+  if (web) web->AddLogLine("report: " + (out / "report.html").string());
   if (!finished.ok()) throw CLI::RuntimeError(1);
 }
 
@@ -135,6 +157,7 @@ void AddDemoCommands(CLI::App& app) {
   demo->add_flag("--guided", args->guided,
                  "Prompt for every rig set-up on this terminal (Enter / r / q), print live gate "
                  "figures and write annotated previews to DIR/previews");
+  AddWebUiOptions(demo, &args->web);
   demo->callback([args] { RunDemo(*args); });
 }
 

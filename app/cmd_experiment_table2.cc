@@ -4,6 +4,7 @@
 // size the solver achieves (default), so that the Hall models are compared on paper-like data.
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -11,6 +12,7 @@
 #include <random>
 
 #include "app/command_registry.h"
+#include "common/progress_line.h"
 #include "mocks/rig/rig_simulator.h"
 #include "mocks/rig/truth_io.h"
 #include "processing/hall/calibration.h"
@@ -167,7 +169,12 @@ void RunTable2(const Table2Args& args) {
   hall::HallCalibrationOptions options;
   options.repetitions = args.repetitions;
   options.seed = args.seed;
+  common::ProgressLine progress("experiment table2",
+                                static_cast<size_t>(std::max(0, args.repetitions)),
+                                "repetitions");  // on a terminal only (stderr)
+  options.on_repetition = [&](int done, int) { progress.Update(static_cast<size_t>(done)); };
   const hall::HallCalibrationResult r = hall::CalibrateHall(setup.Input(), options);
+  progress.Finish();
   std::printf("%s", results::FormatTableTwo(r, options).c_str());
   for (const auto& m : r.table) {
     if (!std::isnan(true_delta_t))

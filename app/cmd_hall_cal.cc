@@ -1,11 +1,13 @@
 // `msmcal hall calibrate DIR`, `msmcal hall predict MODEL IN.csv OUT.csv`: the Hall-sensor
 // calibration of MSM paper Sec. V-B (processing/hall) on an interchange folder, and the live
 // predictor on recorded readings.
+#include <algorithm>
 #include <stdexcept>
 #include <string>
 
 #include "app/command_registry.h"
 #include "app/step_output.h"
+#include "common/progress_line.h"
 #include "processing/hall/calibration.h"
 #include "sessions/results/finish_steps.h"
 
@@ -24,7 +26,11 @@ void RunCalibrate(const std::string& dir, int repetitions, uint64_t seed,
                                model_name + "'");
     options.models = {kind};
   }
+  common::ProgressLine progress("hall calibrate", static_cast<size_t>(std::max(0, repetitions)),
+                                "repetitions");  // on a terminal only
+  options.on_repetition = [&](int done, int) { progress.Update(static_cast<size_t>(done)); };
   const results::HallCalibrationStepResult r = results::RunHallCalibration(dir, options);
+  progress.Finish();
   PrintStepReport(r);
   if (!r.ok()) throw std::runtime_error(r.error);
 }

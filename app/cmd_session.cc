@@ -17,6 +17,8 @@
 // and camera.yaml as the interchange format defines them (`msmcal plan` writes one). --dry-run
 // checks the plan against the rig's limits and the free disk and prints the expected duration,
 // prompts and disk needed, creating nothing. Interrupted, it continues with `msmcal resume DIR`.
+// `--ui web[:PORT]`: the operator answers on the live view's page in a browser instead of the
+// console (app/web_ui.h; docs/guided.md).
 #include <CLI/CLI.hpp>
 #include <chrono>
 #include <cstdio>
@@ -29,6 +31,7 @@
 
 #include "app/command_registry.h"
 #include "app/session_flow.h"
+#include "app/web_ui.h"
 #include "drivers/generator/rig_config.h"
 #include "drivers/hall_mcu/hall_mcu_config.h"
 #include "sessions/interchange/interchange_io.h"
@@ -81,6 +84,7 @@ struct SessionRunArgs {
   std::string operator_spec = "console";
   int hook_timeout_s = 600;
   bool dry_run = false;
+  WebUiArgs web;  // --ui web[:PORT], --ui-bind
 };
 
 // The nearest existing folder at or above `p` (where DIR would be created).
@@ -110,10 +114,14 @@ void RehearseSession(const SessionRunArgs& args, const rig::RigFile& rig,
 void RunSessionRun(const SessionRunArgs& args) {
   namespace fs = std::filesystem;
   const auto start = std::chrono::steady_clock::now();
+  std::unique_ptr<WebUi> web;  // --ui checked before any file is read
+  if (args.web.enabled()) web = std::make_unique<WebUi>(args.web);
   const fs::path out = fs::absolute(args.out);
   // Everything is checked before anything is created or contacted.
   const rig::RigFile rig = rig::LoadRigFile(args.rig);
-  (void)ParseOperatorSpec(args.operator_spec);
+  if (!ParseOperatorSpec(args.operator_spec).empty() && web)
+    throw std::invalid_argument("--ui web and --operator " + args.operator_spec +
+                                ": the web page is an operator; use one of them");
   if (args.hook_timeout_s <= 0)
     throw std::invalid_argument("--hook-timeout = " + std::to_string(args.hook_timeout_s) +
                                 ": must be > 0 s");
@@ -144,6 +152,7 @@ void RunSessionRun(const SessionRunArgs& args) {
   lab.rig_id = args.rig_id;
   lab.mirror_id = args.mirror_id;
   lab.note = args.note;
+  lab.web = web.get();
   std::vector<std::string> notes;
   lab.progress = [&](const std::string& line) {
     const double t =
@@ -151,8 +160,15 @@ void RunSessionRun(const SessionRunArgs& args) {
     std::printf("[%6.1f s] %s\n", t, line.c_str());
     std::fflush(stdout);
     notes.push_back(line);
+    if (web) web->AddLogLine(line);
   };
-  (void)RunLabAcquisition(out, lab);
+  try {
+    (void)RunLabAcquisition(out, lab);
+  } catch (const std::exception& e) {
+    if (web) web->Finished(/*done=*/false, e.what());
+    throw;
+  }
+  if (web) web->Finished(/*done=*/true, "acquisition complete: solving, then the report");
   const FinishResult finished = FinishSession(out, FinishOptions{}, &notes);
   const report::SessionReport report = report::WriteSessionReport(
       out, {/*session_process=*/true, notes}, simulation::SimTruthSource());
@@ -196,6 +212,7 @@ void AddSessionCommands(CLI::App& app) {
   run->add_flag("--dry-run", run_args->dry_run,
                 "Check the plan against the rig's limits and the free disk, print duration, "
                 "prompts and disk needed; create nothing, contact no instrument");
+  AddWebUiOptions(run, &run_args->web);
   run->callback([run_args] { RunSessionRun(*run_args); });
 }
 

@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "app/command_registry.h"
+#include "common/progress_line.h"
 #include "mocks/marg/marg_simulator.h"
 #include "mocks/rig/rig_simulator.h"
 #include "mocks/rig/sim_options.h"
@@ -65,6 +66,7 @@ void RenderAll(const sim::RigSimulator& sim, const fs::path& out, int jobs) {
   std::atomic<size_t> next{0};
   std::mutex error_mutex;
   std::exception_ptr error;
+  common::ProgressLine progress("simulate", total, "frames rendered");  // on a terminal only
   auto worker = [&] {
     for (size_t i = next++; i < total; i = next++) {
       try {
@@ -75,6 +77,7 @@ void RenderAll(const sim::RigSimulator& sim, const fs::path& out, int jobs) {
           interchange::WriteImageAtomically(out / sim.step2_frames()[i - n1].file,
                                             sim.RenderStep2Frame(i - n1));
         }
+        progress.Step();
       } catch (...) {
         std::lock_guard<std::mutex> lock(error_mutex);
         if (!error) error = std::current_exception();

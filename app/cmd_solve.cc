@@ -2,17 +2,21 @@
 // DIR/results/ (mirror_planes.csv, beams.csv, validation.csv, summary.json "mirror_poses", and the
 // native validation_detail.csv). `msmcal experiment table1`: the paper's Table I on the simulated
 // rig (3 spanning angles x 2 scan patterns, baseline vs proposed).
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <memory>
+#include <mutex>
 #include <opencv2/imgcodecs.hpp>
 #include <sstream>
 
 #include "app/command_registry.h"
 #include "app/step_output.h"
+#include "common/progress_line.h"
 #include "mocks/rig/rig_simulator.h"
 #include "processing/solver/diagnostics.h"
 #include "processing/solver/home_frame.h"
@@ -210,7 +214,16 @@ solver::PipelineOptions OptionsOf(const SolveArgs& args) {
 
 void RunSolve(const SolveArgs& args) {
   // Settings first: a bad knob is reported before any file of the folder is read.
-  const results::SolveStepResult r = results::RunSolveStep(args.dir, OptionsOf(args));
+  const solver::PipelineOptions options = OptionsOf(args);
+  std::unique_ptr<common::ProgressLine> progress;  // on a terminal only (stderr)
+  std::mutex progress_mu;
+  const results::SolveStepResult r =
+      results::RunSolveStep(args.dir, options, [&](size_t read, size_t total) {
+        std::lock_guard<std::mutex> lock(progress_mu);
+        if (!progress) progress = std::make_unique<common::ProgressLine>("solve", total, "images");
+        progress->Update(read, read < total ? "reading and measuring" : "estimating");
+      });
+  progress.reset();
   PrintStepReport(r);
   if (!r.ok()) throw std::runtime_error(r.error);
 }
@@ -249,6 +262,11 @@ void MeanSd(const std::vector<double>& v, double* rms, double* sd) {
 void RunTable1(const Table1Args& args) {
   const double spans[3] = {18.0, 27.0, 46.0};
   std::vector<Table1Row> table;
+  size_t rows_to_run = 0;
+  for (int index = 1; index <= 6; ++index)
+    rows_to_run += args.rows.empty() ||
+                   std::find(args.rows.begin(), args.rows.end(), index) != args.rows.end();
+  common::ProgressLine progress("experiment table1", rows_to_run, "rows");
   for (int pattern = 0; pattern < 2; ++pattern) {
     for (int k = 0; k < 3; ++k) {
       const int index = pattern * 3 + k + 1;
@@ -266,7 +284,11 @@ void RunTable1(const Table1Args& args) {
       }
       const sim::RigSimulator simulator(o);
       const dataset::Recording rec = simulator.MakeRecording(/*with_hall=*/false);
+      const std::string row_name =
+          std::string("Pattern-") + (pattern == 0 ? "A-" : "B-") + std::to_string(index);
+      std::atomic<size_t> images{0};
       const solver::ImageLoader load = [&](const std::string& file) -> cv::Mat {
+        progress.Update(table.size(), row_name + ": " + std::to_string(++images) + " images read");
         for (size_t i = 0; i < rec.step1.size(); ++i)
           if (rec.step1[i].file == file) return simulator.RenderStep1Frame(i);
         for (size_t i = 0; i < rec.step2.size(); ++i)
@@ -283,6 +305,7 @@ void RunTable1(const Table1Args& args) {
         std::printf("%s failed: %s\n", row.name.c_str(), e.what());
         row.failed = e.what();
         table.push_back(row);
+        progress.Update(table.size(), row.name + " failed");
         continue;
       }
       row.spanning = out.mean_spanning_angle_deg;
@@ -323,8 +346,10 @@ void RunTable1(const Table1Args& args) {
         std::printf("  %s dropped %s: %s\n", row.name.c_str(), d.file.c_str(), d.reason.c_str());
       std::fflush(stdout);
       table.push_back(row);
+      progress.Update(table.size(), row.name + " done");
     }
   }
+  progress.Finish();
   std::ostringstream s;
   s << "| Dataset | Avg. spanning angle (deg) | Baseline error (deg) | Proposed error (deg) | "
        "Plane normal RMS vs truth (deg) | Trans RMS vs truth (mm) | Normalised validation RMS | "

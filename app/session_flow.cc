@@ -11,6 +11,7 @@
 #include <stdexcept>
 
 #include "app/step_output.h"
+#include "app/web_ui.h"
 #include "common/text_io.h"
 #include "drivers/generator/rig_config.h"
 #include "drivers/hall_mcu/hall_mcu_config.h"
@@ -73,6 +74,44 @@ void AddMockFault(const std::string& text, twin::DemoRigOptions& ro) {
 
 }  // namespace
 
+namespace {
+
+// The simulator's sliding-plate poses as the guided prompts' hints.
+std::vector<std::string> PoseHints(const sim::Step1Options& s1) {
+  std::vector<std::string> hints;
+  for (int l = 0; l < s1.poses; ++l) {
+    const double mm =
+        s1.nearest_mm + (s1.poses > 1 ? l * (s1.farthest_mm - s1.nearest_mm) / (s1.poses - 1) : 0);
+    char hint[160];
+    std::snprintf(hint, sizeof(hint),
+                  "about %.0f mm from the mirror position towards the source, tilted %+.0f deg", mm,
+                  (l % 2 == 0 ? 1 : -1) * s1.tilt_deg);
+    hints.push_back(hint);
+  }
+  return hints;
+}
+
+}  // namespace
+
+void MakeGuidedWeb(DemoAcquisitionOptions& acq, WebUi* web) {
+  MakeGuided(acq);
+  const std::vector<std::string> hints = PoseHints(acq.sim.step1);
+  acq.make_operator = [web, hints](orchestrator::RigOperator& world,
+                                   const dataset::Recording& plan) {
+    live_view::WebOperatorOptions wo;
+    wo.pose_hints = hints;
+    return web->MakeOperator(wo, &world);
+  };
+  auto guided = std::move(acq.adjust_options);
+  acq.adjust_options = [web, guided](orchestrator::OrchestratorOptions& o) {
+    guided(o);
+    web->Observe(o);
+  };
+  acq.before_run = [web](const dataset::Recording& plan, const fs::path& out) {
+    web->Start(plan, out);
+  };
+}
+
 void MakeGuided(DemoAcquisitionOptions& acq) {
   const sim::Step1Options s1 = acq.sim.step1;
   acq.make_operator = [s1](orchestrator::RigOperator& world, const dataset::Recording& plan) {
@@ -131,6 +170,7 @@ orchestrator::SessionResult RunDemoAcquisition(const fs::path& out,
   oo.watchdog = gen::SelfWatchdogLaunch("msmcal", "watchdog");
   if (options.adjust_options) options.adjust_options(oo);
   const dataset::Recording plan = rig.Plan();
+  if (options.before_run) options.before_run(plan, out);
   std::unique_ptr<orchestrator::RigOperator> op;
   if (options.make_operator) op = options.make_operator(rig.world(), plan);
   orchestrator::RigOperator& who = op ? *op : rig.world();
@@ -250,6 +290,15 @@ orchestrator::SessionResult RunLabAcquisition(const fs::path& out,
   co.mcu_device = oo.mcu.device;
   co.host_clock_ns = HostClockFor(oo.camera);
   co.poses = options.poses;
+  if (options.web) {
+    options.web->Start(options.plan, out);
+    options.web->Observe(oo);
+    live_view::WebOperatorOptions wo;
+    wo.mcu_device = co.mcu_device;
+    wo.host_clock_ns = co.host_clock_ns;
+    const auto web_operator = options.web->MakeOperator(wo, nullptr);
+    return orchestrator::RunSession(oo, options.plan, *web_operator, options.progress);
+  }
   orchestrator::ConsoleOperator console(options.plan, co, nullptr);
   return orchestrator::RunSession(oo, options.plan, console, options.progress);
 }

@@ -46,11 +46,21 @@ struct DemoAcquisitionOptions {
   // "mcu-actual:SPEC" (SPEC as `msmcal mock mcu --fault`: flip@N, drop@N, reset@N, stall@N[:ms]).
   // Not journalled: a resumed session meets no fault.
   std::vector<std::string> mock_faults;
+  // Called with the plan and the session folder once the rig is up, before the session runs
+  // (e.g. to start the live view; may be empty).
+  std::function<void(const dataset::Recording& plan, const std::filesystem::path& out)> before_run;
 };
 
 // Guided demo: a ConsoleOperator on stdin/stdout in front of the simulated world (pose hints from
 // the simulator's step-1 options), live quality figures and annotated previews (previews/).
 void MakeGuided(DemoAcquisitionOptions& acq);
+
+class WebUi;
+// Guided demo on the live view's page (`--ui web`, app/web_ui.h): as MakeGuided (live figures
+// printed, previews written), but the operator is the web page's WebOperator in front of the
+// simulated world, and the page gets the camera, the figures and the rig's state. `web` must
+// outlive the acquisition; its view is started when the plan is known.
+void MakeGuidedWeb(DemoAcquisitionOptions& acq, WebUi* web);
 
 // Starts the demo rig for `options.sim`, runs (or resumes) the session into `out` with run_kind
 // "demo" (the simulator options are journalled, so `msmcal resume` can rebuild the rig), and
@@ -72,6 +82,7 @@ struct LabAcquisitionOptions {
   std::string rig_id, mirror_id, note;
   bool resume = false;
   int input_fd = 0, output_fd = 1;  // the operator's terminal
+  WebUi* web = nullptr;  // not null: the operator is the live view's page (`--ui web`) instead
   orchestrator::ProgressFn progress;
   // From the rig file (sessions/rig) when the session has one:
   std::optional<double> camera_exposure_us;

@@ -12,6 +12,8 @@ find_package(SQLite3 REQUIRED)
 find_package(PkgConfig REQUIRED)
 pkg_check_modules(ARAVIS REQUIRED IMPORTED_TARGET aravis-0.8)
 pkg_check_modules(LIBV4L2 REQUIRED IMPORTED_TARGET libv4l2)
+# The live view's HTTP server (sessions/live_view, private): Debian libcpp-httplib-dev.
+pkg_check_modules(HTTPLIB REQUIRED IMPORTED_TARGET cpp-httplib)
 if(MSMCAL_BUILD_TESTS)
   find_package(GTest REQUIRED)
 endif()

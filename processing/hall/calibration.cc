@@ -140,6 +140,7 @@ HallCalibrationResult CalibrateHall(const HallCalibrationInput& in, const HallCa
       test_rms[m].push_back(EvaluateRms(fitted.model, test, f_test));
       dts[m].push_back(fitted.model.delta_t_s);
     }
+    if (o.on_repetition) o.on_repetition(rep + 1, o.repetitions);
   }
   if (std::none_of(usable.begin(), usable.end(), [](bool u) { return u; })) {
     std::string why;

@@ -13,6 +13,7 @@
 
 #include <Eigen/Core>
 #include <cstdint>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -42,6 +43,8 @@ struct HallCalibrationOptions {
   uint64_t seed = 1;
   std::vector<HallModelKind> models = {HallModelKind::kLinear, HallModelKind::kSine, HallModelKind::kQuadratic,
                                        HallModelKind::kCubic};
+  // Optional, called after each repetition (progress lines): repetitions done and the total.
+  std::function<void(int done, int total)> on_repetition;
   std::string Validate() const;
 };
 

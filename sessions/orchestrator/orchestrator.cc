@@ -1,8 +1,10 @@
 #include "sessions/orchestrator/orchestrator.h"
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cmath>
+#include <condition_variable>
 #include <cstdio>
 #include <map>
 #include <memory>
@@ -11,6 +13,7 @@
 #include <opencv2/core.hpp>
 #include <optional>
 #include <stdexcept>
+#include <thread>
 
 #include "acquisition/hall/hall_csv_writer.h"
 #include "acquisition/hall/hall_recorder.h"
@@ -170,6 +173,46 @@ cv::Mat FrameToMat(const camera::Frame& frame) {
   return view.clone();
 }
 
+// Streams the camera to OrchestratorOptions::on_live_frame while the operator is asked (see
+// LiveFrame): constructed just before a RigOperator::Prepare* call, destroyed (stopped and
+// joined) when it returns or throws. Does nothing without a streaming camera or an observer. A
+// camera error ends the pump quietly: the orchestrator's next grab meets it and reports it.
+// The camera is used by one thread at a time, as camera::Camera requires: the pump's thread
+// between the constructor and the join in the destructor, the orchestrator's otherwise.
+class LivePump {
+ public:
+  LivePump(camera::Camera* cam, const LiveFrameObserver& observer, int step, size_t index) {
+    if (!cam || !observer) return;
+    thread_ = std::thread([this, cam, &observer, step, index] {
+      while (!stop_.load()) {
+        camera::FrameResult fr = cam->NextFrame(/*timeout_us=*/100'000);
+        if (fr.status == camera::FrameStatus::kTimeout) continue;
+        if (fr.status != camera::FrameStatus::kOk) return;
+        const cv::Mat image = FrameToMat(fr.frame);
+        LiveFrame live;
+        live.step = step;
+        live.index = index;
+        live.image = &image;
+        live.host_timestamp_ns = fr.frame.info().host_timestamp_ns;
+        try {
+          observer(live);
+        } catch (...) {  // the live view never stops a session
+        }
+      }
+    });
+  }
+  ~LivePump() {
+    stop_.store(true);
+    if (thread_.joinable()) thread_.join();
+  }
+  LivePump(const LivePump&) = delete;
+  LivePump& operator=(const LivePump&) = delete;
+
+ private:
+  std::atomic<bool> stop_{false};
+  std::thread thread_;
+};
+
 int ExpectedDots(const dataset::Step1Frame& f) { return static_cast<int>(f.beams.size()); }
 int ExpectedDots(const dataset::Step2Frame& f) {
   return static_cast<int>(f.beams.size() * std::max<size_t>(1, f.triggers.size()));
@@ -287,6 +330,60 @@ RigCheckResult CheckRig(const OrchestratorOptions& options, const dataset::Recor
   return r;
 }
 
+// Reports a running Hall recording's counts to OrchestratorOptions::on_rig_status about twice a
+// second from a thread of its own, and once more (no recording running) when destroyed. Only
+// used while the generator outputs are on and locked (RecordHall runs after the rig's Apply).
+class HallStatusReporter {
+ public:
+  HallStatusReporter(const RigStatusObserver& observer, std::string name,
+                     const acquisition::HallRecorder& recorder)
+      : observer_(observer), recorder_(recorder) {
+    if (!observer_) return;
+    thread_ = std::thread([this, name = std::move(name)] {
+      std::unique_lock<std::mutex> lock(mutex_);
+      do {
+        lock.unlock();
+        Report(name);
+        lock.lock();
+      } while (!cv_.wait_for(lock, std::chrono::milliseconds(500), [this] { return stop_; }));
+    });
+  }
+  ~HallStatusReporter() {
+    if (!thread_.joinable()) return;
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      stop_ = true;
+    }
+    cv_.notify_all();
+    thread_.join();
+    Report("");
+  }
+  HallStatusReporter(const HallStatusReporter&) = delete;
+  HallStatusReporter& operator=(const HallStatusReporter&) = delete;
+
+ private:
+  void Report(const std::string& name) {
+    const acquisition::HallRecorderCounts c = recorder_.Counts();
+    RigStatus st;
+    st.outputs_on = true;
+    st.reference_locked = true;
+    st.hall_recording = name;
+    st.hall_readings = c.readings_delivered;
+    st.hall_lost = c.driver.readings_lost + c.readings_dropped;
+    st.hall_seconds = c.seconds_recorded;
+    try {
+      observer_(st);
+    } catch (...) {  // an observer never stops a recording
+    }
+  }
+  const RigStatusObserver& observer_;
+  const acquisition::HallRecorder& recorder_;
+  std::mutex mutex_;
+  std::condition_variable cv_;
+  bool stop_ = false;
+  std::thread thread_;
+};
+
 // Records one Hall recording into hall/<name>.csv through the driver; returns the recorder's
 // result. Throws when the recording ended abnormally, the sink (CSV writer) failing included.
 // With `during`, the recording runs while it does and is stopped when it returns; `during` calls
@@ -310,19 +407,23 @@ acquisition::HallRecorderResult RecordHall(
   recorder.Start();
   const std::string who = csv.filename().string() + ": Hall recording";
   std::exception_ptr error;
-  try {
-    if (during) {
-      during([&] {
-        if (std::string e = recorder.SinkError(); !e.empty())
-          throw std::runtime_error(who + " failed: " + e);
-      });
+  acquisition::HallRecorderResult result;
+  {
+    HallStatusReporter status(options.on_rig_status, csv.stem().string(), recorder);
+    try {
+      if (during) {
+        during([&] {
+          if (std::string e = recorder.SinkError(); !e.empty())
+            throw std::runtime_error(who + " failed: " + e);
+        });
+        recorder.Stop();
+      }
+    } catch (...) {
+      error = std::current_exception();
       recorder.Stop();
     }
-  } catch (...) {
-    error = std::current_exception();
-    recorder.Stop();
+    result = recorder.Wait();
   }
-  acquisition::HallRecorderResult result = recorder.Wait();
   const bool sink_ok = result.end != acquisition::RecorderEnd::kSinkFailed &&
                        result.end != acquisition::RecorderEnd::kSinkHung;
   if (sink_ok) writer->Close();
@@ -627,6 +728,16 @@ SessionResult RunSession(const OrchestratorOptions& options, const dataset::Reco
         gen::WatchdogConfigFor(options.generators, (out / "session_log.txt").string()));
     log.Line("watchdog armed (pid " + std::to_string(watchdog->pid()) + ")");
   }
+  auto report_rig = [&](bool outputs_on) {
+    if (!options.on_rig_status) return;
+    RigStatus st;
+    st.outputs_on = outputs_on;
+    st.reference_locked = outputs_on;
+    try {
+      options.on_rig_status(st);
+    } catch (...) {  // an observer never changes the safe state's path
+    }
+  };
   auto safe_state = [&] {
     const bool ok = rig.SafeState();
     if (ok && watchdog) watchdog->StandDown();
@@ -639,6 +750,7 @@ SessionResult RunSession(const OrchestratorOptions& options, const dataset::Reco
     log.Line(e.text, ok ? "info" : "error");
     result.safe_state_confirmed = ok;
     emit(e);
+    report_rig(/*outputs_on=*/!ok);
   };
   // Explicit paths below run safe_state() and Disarm() the guard, so the guard's own action runs
   // only on a signal (INT, TERM, HUP, QUIT).
@@ -661,6 +773,7 @@ SessionResult RunSession(const OrchestratorOptions& options, const dataset::Reco
         signals.trigger.times_s.size(), static_cast<long long>(signals.trigger.arb.points),
         signals.trigger.arb.sample_rate_sps, signals.trigger.max_quantisation_error_s * 1e6);
     log.Line(buf);
+    report_rig(/*outputs_on=*/true);
 
     if (camera::Status s = inst.cam->Start(); !s)
       throw std::runtime_error("camera: start streaming: " + s.message);
@@ -763,7 +876,10 @@ SessionResult RunSession(const OrchestratorOptions& options, const dataset::Reco
         const auto& f = plan.step1[i];
         FrameOutcome fo;
         if (!from_journal(f.file, &fo)) {
-          rig_operator.PrepareStep1Frame(i);
+          {
+            LivePump pump(inst.cam.get(), options.on_live_frame, 1, i);
+            rig_operator.PrepareStep1Frame(i);
+          }
           store::FrameRecord record;
           record.step = "step1";
           record.pose = f.pose;
@@ -837,7 +953,11 @@ SessionResult RunSession(const OrchestratorOptions& options, const dataset::Reco
       set_step(kStepBackground, store::StepState::kRunning);
       keep_partial("background");
       if (ask_background_later) {
-        const std::string device = rig_operator.PrepareHallRecording(HallRun::kBackground);
+        std::string device;
+        {
+          LivePump pump(inst.cam.get(), options.on_live_frame, 0, 0);
+          device = rig_operator.PrepareHallRecording(HallRun::kBackground);
+        }
         if (device != background_device) {
           inst.mcu.reset();
           hall_mcu::HallMcuOptions link = options.mcu;
@@ -862,7 +982,11 @@ SessionResult RunSession(const OrchestratorOptions& options, const dataset::Reco
     if (!StepDone(*journal, kStep2)) {
       set_step(kStep2, store::StepState::kRunning);
       keep_partial("actual");
-      const std::string actual_device = rig_operator.PrepareHallRecording(HallRun::kActual);
+      std::string actual_device;
+      {
+        LivePump pump(inst.cam.get(), options.on_live_frame, 0, 0);
+        actual_device = rig_operator.PrepareHallRecording(HallRun::kActual);
+      }
       hall_mcu::HallMcuOptions link = options.mcu;
       link.device = actual_device;
       auto actual_mcu = Instruments(options).OpenHallSensor(link);
@@ -875,7 +999,10 @@ SessionResult RunSession(const OrchestratorOptions& options, const dataset::Reco
                          const auto& f = plan.step2[i];
                          FrameOutcome fo;
                          if (!from_journal(f.file, &fo)) {
-                           rig_operator.PrepareStep2Frame(i);
+                           {
+                             LivePump pump(inst.cam.get(), options.on_live_frame, 2, i);
+                             rig_operator.PrepareStep2Frame(i);
+                           }
                            store::FrameRecord record;
                            record.step = "step2";
                            record.kind = f.kind;

@@ -60,6 +60,40 @@ struct FrameReport {
 };
 using FrameObserver = std::function<void(const FrameReport&)>;
 
+// A frame streamed while the orchestrator waits for the person at the rig (the live view, issue
+// 19): during every RigOperator::Prepare* call made once the camera streams, a pump thread grabs
+// the free-running camera's frames and hands each to OrchestratorOptions::on_live_frame. The
+// pump is stopped and joined before Prepare* returns to the orchestrator, which then grabs
+// again itself; a live frame is never a session frame and is never gated nor journalled.
+// Pointers are valid during the call only.
+struct LiveFrame {
+  // The frame the operator is setting up: step 1 or 2 and its index into the plan's step1 /
+  // step2 list; step 0 while a Hall recording is set up (no frame follows directly).
+  int step = 0;
+  size_t index = 0;
+  const cv::Mat* image = nullptr;  // as grabbed (FrameToMat: Mono8/Mono16/RGB8)
+  int64_t host_timestamp_ns = 0;   // camera::FrameInfo::host_timestamp_ns
+};
+// Called on the pump thread, never concurrently with itself; it may run concurrently with the
+// ProgressFn and the RigStatusObserver (the orchestrator's thread) but not with on_frame (the
+// pump is stopped while frames are taken). It should return quickly (the camera's frames queue
+// up meanwhile); exceptions it throws are swallowed (the live view never stops a session).
+using LiveFrameObserver = std::function<void(const LiveFrame&)>;
+
+// The rig's state as the orchestrator knows it, for observers (the live view's rig panel): sent
+// when the outputs go on or off and, during a Hall recording, about twice a second.
+struct RigStatus {
+  bool outputs_on = false;        // generator outputs (drive coils, laser trigger) may be on
+  bool reference_locked = false;  // unit 2 verified locked to unit 1's 10 MHz reference
+  std::string hall_recording;     // "background" | "actual" | "" (no recording running)
+  uint64_t hall_readings = 0;     // readings delivered in that recording so far
+  uint64_t hall_lost = 0;         // readings lost on the link + dropped (recorder queue full)
+  double hall_seconds = 0;        // MCU time the recording covers so far
+};
+// Called from the orchestrator's thread or, during a Hall recording, from a status thread of its
+// own (never concurrently with itself).
+using RigStatusObserver = std::function<void(const RigStatus&)>;
+
 // Step names recorded in the journal, in order.
 inline constexpr const char* kStepRigCheck = "rig_check";
 inline constexpr const char* kStep1 = "step1";
@@ -99,6 +133,10 @@ struct OrchestratorOptions {
   // Called with every typed event of the session (may be empty): frames decided, Hall
   // recordings, step states, the safe state (sessions/orchestrator/session_events.h).
   SessionEventObserver on_event;
+  // Frames streamed while the operator is asked (see LiveFrame; may be empty: no pump).
+  LiveFrameObserver on_live_frame;
+  // The rig's state when it changes (see RigStatus; may be empty).
+  RigStatusObserver on_rig_status;
   // Journal metadata (session.db meta keys rig_id, mirror_id, note, run.kind, config_yaml).
   // run_kind tells `msmcal resume` which rig to rebuild: "lab" (config_yaml = the rig
   // configuration), "demo" (config_yaml = the simulator options), "replay" (config_yaml names the

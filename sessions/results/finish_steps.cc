@@ -5,7 +5,10 @@
 #include <cstdarg>
 #include <cstdio>
 #include <exception>
+#include <memory>
+#include <mutex>
 #include <opencv2/imgcodecs.hpp>
+#include <set>
 #include <sstream>
 #include <stdexcept>
 
@@ -93,7 +96,8 @@ void AddDropped(const std::vector<solver::DroppedFrame>& dropped,
 
 }  // namespace
 
-SolveStepResult RunSolveStep(const fs::path& dir, const solver::PipelineOptions& options) {
+SolveStepResult RunSolveStep(const fs::path& dir, const solver::PipelineOptions& options,
+                             const std::function<void(size_t, size_t)>& on_image) {
   SolveStepResult r;
   try {
     if (const std::string e = options.Validate(); !e.empty())
@@ -104,7 +108,27 @@ SolveStepResult RunSolveStep(const fs::path& dir, const solver::PipelineOptions&
     const auto t0 = std::chrono::steady_clock::now();
     solver::SolveOutput out;
     try {
-      out = solver::SolveRecording(rec, FolderLoader(dir, rec.camera), options);
+      solver::ImageLoader load = FolderLoader(dir, rec.camera);
+      if (on_image) {
+        struct Seen {
+          std::mutex mu;
+          std::set<std::string> files;
+        };
+        auto seen = std::make_shared<Seen>();
+        const size_t total = rec.step1.size() + rec.step2.size();
+        load = [inner = std::move(load), seen, total, &on_image](const std::string& file) {
+          cv::Mat image = inner(file);
+          size_t n = 0;
+          {
+            std::lock_guard<std::mutex> lock(seen->mu);
+            seen->files.insert(file);
+            n = seen->files.size();
+          }
+          on_image(n, total);
+          return image;
+        };
+      }
+      out = solver::SolveRecording(rec, load, options);
     } catch (const solver::SolveError& e) {
       if (e.partial) {
         AddDropped(e.partial->dropped, &r.warnings);

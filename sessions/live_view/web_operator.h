@@ -1,0 +1,81 @@
+#pragma once
+// The guided mode's operator on a web page (issue 19): a RigOperator that shows each set-up
+// instruction on the live view's page (the same blocks ConsoleOperator prints:
+// orchestrator::Describe*) and waits for the controlling page's answer, with the console's
+// meaning: Ready confirms (then, in the demo, the inner operator changes the simulated world),
+// Repeat shows the block again, Abort throws orchestrator::OperatorAbort, which RunSession
+// treats like the console's `q` (camera stopped, every generator output off and confirmed, the
+// abort in session_log.txt and the journal, no session.yaml).
+//
+// An Abort sent while the session is running (no instruction shown) is taken at the next
+// operator call: the next FrameShowsCurrentSetup (within one camera frame while a frame is
+// taken) or the next Prepare*; during a Hall recording without frames it waits for the
+// recording's end.
+//
+// Call order, numbering ("[k/N]") and the lab freshness rule are those of ConsoleOperator
+// (sessions/orchestrator/console_operator.h). Thread safety: called from the orchestrator's
+// thread; the LiveView is thread-safe.
+
+#include <cstdint>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "processing/dataset/recording.h"
+#include "sessions/live_view/live_view.h"
+#include "sessions/orchestrator/rig_operator.h"
+
+namespace msmcal::live_view {
+
+struct WebOperatorOptions {
+  // Per step-1 pose index: where the sliding plate goes (ConsoleOperatorOptions::pose_hints).
+  std::vector<std::string> pose_hints;
+  // Also gets every instruction block and the outcome of each answer (the terminal; may be
+  // empty).
+  std::function<void(const std::string& text)> echo;
+  // Lab only (no inner operator), as ConsoleOperatorOptions: the MCU device for both recordings,
+  // the camera driver's host clock and the settle time after a confirmation.
+  std::string mcu_device;
+  std::function<int64_t()> host_clock_ns;
+  int64_t settle_ns = 300'000'000;
+  std::string Validate(bool has_inner) const;  // empty when valid; names field and constraint
+};
+
+class WebOperator : public orchestrator::RigOperator {
+ public:
+  // `plan`, `view` and `inner` (may be null: lab) must outlive the operator. Throws
+  // std::invalid_argument when options.Validate(inner != nullptr) fails.
+  WebOperator(const dataset::Recording& plan, LiveView& view, WebOperatorOptions options,
+              orchestrator::RigOperator* inner);
+
+  void PrepareStep1Frame(size_t index) override;
+  void PrepareStep2Frame(size_t index) override;
+  // Throws OperatorAbort when the page asked for an abort meanwhile.
+  bool FrameShowsCurrentSetup(const camera::FrameInfo& info) const override;
+  std::string PrepareHallRecording(orchestrator::HallRun run) override;
+
+  int confirmations() const { return confirmations_; }
+  int total_steps() const { return total_; }
+
+ private:
+  // Shows the block until Ready; throws OperatorAbort on Abort.
+  void Ask(const std::string& instructions, int number, int step, size_t index);
+  void SeeFirstCall(bool is_background);
+  void Echo(const std::string& text) const;
+
+  const dataset::Recording& plan_;
+  LiveView& view_;
+  WebOperatorOptions options_;
+  orchestrator::RigOperator* inner_;
+  int total_ = 0;
+  int confirmations_ = 0;
+  bool order_known_ = false;
+  bool background_first_ = false;
+  int64_t confirmed_ns_ = 0;
+};
+
+// The exception messages (what session_log.txt records).
+inline constexpr const char* kWebAbortMessage =
+    "guided mode: operator aborted the session from the web page";
+
+}  // namespace msmcal::live_view
