@@ -237,6 +237,23 @@ RigCheckResult CheckRig(const OrchestratorOptions& options, const dataset::Recor
   } catch (const std::exception& e) {
     r.problems.push_back(std::string("signal design: ") + e.what());
   }
+  // A frame must collect every trigger of its pattern: expose at least one pattern period.
+  if (options.camera_exposure_us) {
+    try {
+      const double period_s = signal::PatternPeriod(options.generators.signals.fast.frequency_hz,
+                                                    options.generators.signals.slow.frequency_hz);
+      if (*options.camera_exposure_us < period_s * 1e6 * (1 - 1e-9)) {
+        char buf[240];
+        std::snprintf(buf, sizeof(buf),
+                      "camera.exposure_us = %.6g is shorter than the drives' pattern period "
+                      "%.6g us: a frame would miss triggers of its pattern",
+                      *options.camera_exposure_us, period_s * 1e6);
+        r.problems.push_back(buf);
+      }
+    } catch (const std::exception&) {
+      // The signal design's own problem is listed above.
+    }
+  }
   // Camera: sensor size and pixel format.
   camera::OpenCameraResult opened = instruments.OpenCamera(options.camera);
   if (!opened.camera) {
