@@ -1,8 +1,9 @@
-// `msmcal plan --rig RIG.yaml --out PLAN_DIR [--force]`: designs a session plan from the rig file
+// `msmcal plan --rig RIG.yaml --out PLAN_DIR [--force] [--setups FILE]`: designs a session plan from the rig file
 // (sessions/plan, docs/lab-path.md) and writes PLAN_DIR/session.yaml + camera.yaml in the
 // interchange format, then prints the summary: frames, the prompts a person will see, the
 // expected duration and the disk needed. Refuses what the rig's limits forbid (the message names
-// the field, the value and the limit; exit status 1), before writing anything.
+// the field, the value and the limit; exit status 1), before writing anything. --setups FILE also
+// writes the plan's set-ups (sessions/setup) as JSON lines, as a hook would receive them.
 #include <CLI/CLI.hpp>
 #include <cstdio>
 #include <filesystem>
@@ -10,6 +11,7 @@
 #include <string>
 
 #include "app/command_registry.h"
+#include "sessions/interchange/interchange_io.h"
 #include "sessions/plan/session_plan.h"
 #include "sessions/rig/rig_file.h"
 
@@ -20,6 +22,7 @@ struct PlanArgs {
   std::string rig = "config/rig.yaml";
   std::string out;
   bool force = false;
+  std::string setups;  // optional: the set-ups' JSON, one per line
 };
 
 void RunPlan(const PlanArgs& args) {
@@ -32,6 +35,12 @@ void RunPlan(const PlanArgs& args) {
   if (!args.force && (fs::exists(out / "session.yaml") || fs::exists(out / "camera.yaml")))
     throw std::runtime_error(out.string() + ": holds a plan already (--force replaces it)");
   plan::WritePlanFolder(out, plan);
+  if (!args.setups.empty()) {
+    std::string lines;
+    for (const auto& s : setup::PlanSetups(plan, plan::PoseGeometryOf(rig)).setups)
+      lines += setup::SetupToJson(s) + "\n";
+    interchange::WriteFileAtomically(args.setups, lines);
+  }
   const plan::PlanSummary s = plan::SummarisePlan(plan, rig);
   std::printf("plan: %s (session.yaml, camera.yaml) from %s\n%s", out.c_str(), args.rig.c_str(),
               s.text.c_str());
@@ -44,6 +53,8 @@ void AddPlanCommand(CLI::App& app) {
   cmd->add_option("--rig", args->rig, "Rig file (docs/rig-file.md)");
   cmd->add_option("--out", args->out, "Plan folder to write")->required();
   cmd->add_flag("--force", args->force, "Replace a plan already in the folder");
+  cmd->add_option("--setups", args->setups,
+                  "Also write the plan's set-ups as JSON lines (what a hook receives) to FILE");
   cmd->callback([args] { RunPlan(*args); });
 }
 

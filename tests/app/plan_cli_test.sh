@@ -23,7 +23,21 @@ if "$msmcal" plan --rig "$src/config/rig.yaml" --out "$dir/plan" > "$dir/err" 2>
   echo "expected a refusal to overwrite the plan"; exit 1
 fi
 grep -q "holds a plan already (--force replaces it)" "$dir/err"
-"$msmcal" plan --rig "$src/config/rig.yaml" --out "$dir/plan" --force > /dev/null
+"$msmcal" plan --rig "$src/config/rig.yaml" --out "$dir/plan" --force --setups "$dir/setups.jsonl" \
+  > /dev/null
+# --setups: one JSON set-up per line, as many as the prompts announced, blocks 1..21 in order.
+/usr/bin/python3 - "$dir/setups.jsonl" <<'PY'
+import json, sys
+lines = open(sys.argv[1]).read().splitlines()
+assert len(lines) == 21, len(lines)
+for k, line in enumerate(lines):
+    s = json.loads(line)
+    assert s["msmcal_setup"] == 1 and s["kind"] == "setup", s
+    assert s["block"] == k + 1 and s["of"] == 21, s
+    assert s["for"]["step"] in ("step1", "hall_background", "hall_actual", "step2"), s
+    assert s["camera"] in ("C1", "C2") and s["drive"] in ("off", "fast_only", "scan"), s
+    assert s["text"].startswith("\n=== [%d/21] " % (k + 1)), s["text"]
+PY
 
 # The shared validator: every problem it reports is a file a plan does not have yet.
 if [ -x /work/shared/tools/validate-interchange ]; then
