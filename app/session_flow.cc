@@ -78,30 +78,26 @@ void AddMockFault(const std::string& text, twin::DemoRigOptions& ro) {
 
 namespace {
 
-// The simulator's sliding-plate poses as the guided prompts' hints.
-std::vector<std::string> PoseHints(const sim::Step1Options& s1) {
-  std::vector<std::string> hints;
+// The simulator's sliding-plate poses as the guided prompts' geometry.
+std::vector<setup::PoseGeometry> SimPoses(const sim::Step1Options& s1) {
+  std::vector<setup::PoseGeometry> poses;
   for (int l = 0; l < s1.poses; ++l) {
     const double mm =
         s1.nearest_mm + (s1.poses > 1 ? l * (s1.farthest_mm - s1.nearest_mm) / (s1.poses - 1) : 0);
-    char hint[160];
-    std::snprintf(hint, sizeof(hint),
-                  "about %.0f mm from the mirror position towards the source, tilted %+.0f deg", mm,
-                  (l % 2 == 0 ? 1 : -1) * s1.tilt_deg);
-    hints.push_back(hint);
+    poses.push_back({mm, (l % 2 == 0 ? 1 : -1) * s1.tilt_deg});
   }
-  return hints;
+  return poses;
 }
 
 }  // namespace
 
 void MakeGuidedWeb(DemoAcquisitionOptions& acq, WebUi* web) {
   MakeGuided(acq);
-  const std::vector<std::string> hints = PoseHints(acq.sim.step1);
-  acq.make_operator = [web, hints](orchestrator::RigOperator& world,
+  const std::vector<setup::PoseGeometry> poses = SimPoses(acq.sim.step1);
+  acq.make_operator = [web, poses](orchestrator::RigOperator& world,
                                    const dataset::Recording& plan) {
     live_view::WebOperatorOptions wo;
-    wo.pose_hints = hints;
+    wo.poses = poses;
     return web->MakeOperator(wo, &world);
   };
   auto guided = std::move(acq.adjust_options);
@@ -115,16 +111,12 @@ void MakeGuidedWeb(DemoAcquisitionOptions& acq, WebUi* web) {
 }
 
 void MakeGuided(DemoAcquisitionOptions& acq) {
-  const sim::Step1Options s1 = acq.sim.step1;
-  acq.make_operator = [s1](orchestrator::RigOperator& world, const dataset::Recording& plan) {
+  const std::vector<setup::PoseGeometry> poses = SimPoses(acq.sim.step1);
+  acq.make_operator = [poses](orchestrator::RigOperator& world, const dataset::Recording& plan) {
     orchestrator::ConsoleOperatorOptions co;
     co.input_fd = STDIN_FILENO;
     co.output_fd = STDOUT_FILENO;
-    for (int l = 0; l < s1.poses; ++l) {
-      const double mm = s1.nearest_mm +
-                        (s1.poses > 1 ? l * (s1.farthest_mm - s1.nearest_mm) / (s1.poses - 1) : 0);
-      co.poses.push_back({mm, (l % 2 == 0 ? 1 : -1) * s1.tilt_deg});
-    }
+    co.poses = poses;
     return std::make_unique<orchestrator::ConsoleOperator>(plan, co, &world);
   };
   const dataset::BoardSpec world{acq.sim.world_board.cols, acq.sim.world_board.rows,
@@ -305,6 +297,8 @@ orchestrator::SessionResult RunLabAcquisition(const fs::path& out,
     live_view::WebOperatorOptions wo;
     wo.mcu_device = co.mcu_device;
     wo.host_clock_ns = co.host_clock_ns;
+    wo.settle_ns = co.settle_ns;
+    wo.poses = co.poses;
     const auto web_operator = options.web->MakeOperator(wo, nullptr);
     return orchestrator::RunSession(oo, options.plan, *web_operator, options.progress);
   }

@@ -4,6 +4,7 @@
 #include <utility>
 
 #include "sessions/orchestrator/console_operator.h"
+#include "sessions/setup/setup.h"
 
 namespace msmcal::live_view {
 namespace {
@@ -35,7 +36,8 @@ WebOperator::WebOperator(const dataset::Recording& plan, LiveView& view, WebOper
     : plan_(plan), view_(view), options_(std::move(options)), inner_(inner) {
   if (std::string e = options_.Validate(inner_ != nullptr); !e.empty())
     throw std::invalid_argument(e);
-  total_ = static_cast<int>(2 + plan_.step1.size() + plan_.step2.size());
+  setups_ = setup::PlanSetups(plan_, options_.poses, /*background_first=*/false);
+  total_ = static_cast<int>(setups_.setups.size());
 }
 
 void WebOperator::Echo(const std::string& text) const {
@@ -66,13 +68,22 @@ void WebOperator::SeeFirstCall(bool is_background) {
   if (order_known_) return;
   order_known_ = true;
   background_first_ = is_background;
+  if (background_first_) setups_ = setup::PlanSetups(plan_, options_.poses, true);
+}
+
+void WebOperator::Enter(int k) {
+  if (k == current_) return;
+  const setup::Setup& s = setups_.setups.at(static_cast<size_t>(k));
+  const int step = s.step == setup::SetupStep::kStep1   ? 1
+                   : s.step == setup::SetupStep::kStep2 ? 2
+                                                        : 0;
+  Ask(s.text, s.block, step, s.frame_indices.empty() ? 0 : s.frame_indices.front());
+  current_ = k;
 }
 
 void WebOperator::PrepareStep1Frame(size_t index) {
   SeeFirstCall(false);
-  const int number = static_cast<int>(index) + (background_first_ ? 2 : 1);
-  Ask(orchestrator::DescribeStep1Frame(plan_, index, options_.pose_hints, number, total_), number,
-      1, index);
+  Enter(setups_.step1_setup.at(index));
   if (inner_)
     inner_->PrepareStep1Frame(index);
   else
@@ -81,8 +92,7 @@ void WebOperator::PrepareStep1Frame(size_t index) {
 
 void WebOperator::PrepareStep2Frame(size_t index) {
   SeeFirstCall(false);
-  const int number = static_cast<int>(3 + plan_.step1.size() + index);
-  Ask(orchestrator::DescribeStep2Frame(plan_, index, number, total_), number, 2, index);
+  Enter(setups_.step2_setup.at(index));
   if (inner_)
     inner_->PrepareStep2Frame(index);
   else
@@ -97,11 +107,9 @@ bool WebOperator::FrameShowsCurrentSetup(const camera::FrameInfo& info) const {
 
 std::string WebOperator::PrepareHallRecording(orchestrator::HallRun run) {
   SeeFirstCall(run == orchestrator::HallRun::kBackground);
-  const int n1 = static_cast<int>(plan_.step1.size());
-  const int number =
-      run == orchestrator::HallRun::kActual ? 2 + n1 : (background_first_ ? 1 : 1 + n1);
-  Ask(orchestrator::DescribeHallRecording(plan_, run, background_first_, number, total_), number, 0,
-      0);
+  current_ = -1;  // a Hall set-up is always asked for (its recording starts on the answer)
+  Enter(run == orchestrator::HallRun::kBackground ? setups_.background_setup
+                                                  : setups_.actual_setup);
   if (inner_) return inner_->PrepareHallRecording(run);
   confirmed_ns_ = options_.host_clock_ns();
   return options_.mcu_device;

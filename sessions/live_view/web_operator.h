@@ -1,11 +1,12 @@
 #pragma once
 // The guided mode's operator on a web page (issue 19): a RigOperator that shows each set-up
-// instruction on the live view's page (the same blocks ConsoleOperator prints:
-// orchestrator::Describe*) and waits for the controlling page's answer, with the console's
-// meaning: Ready confirms (then, in the demo, the inner operator changes the simulated world),
-// Repeat shows the block again, Abort throws orchestrator::OperatorAbort, which RunSession
-// treats like the console's `q` (camera stopped, every generator output off and confirmed, the
-// abort in session_log.txt and the journal, no session.yaml).
+// instruction on the live view's page (the same blocks ConsoleOperator prints, rendered from the
+// session's set-ups: setup::PlanSetups, one prompt per physical set-up) and waits for the
+// controlling page's answer, with the console's meaning: Ready confirms (then, in the demo, the
+// inner operator changes the simulated world), Repeat shows the block again, Abort throws
+// orchestrator::OperatorAbort, which RunSession treats like the console's `q` (camera stopped,
+// every generator output off and confirmed, the abort in session_log.txt and the journal, no
+// session.yaml).
 //
 // An Abort sent while the session is running (no instruction shown) is taken at the next
 // operator call: the next FrameShowsCurrentSetup (within one camera frame while a frame is
@@ -24,12 +25,13 @@
 #include "processing/dataset/recording.h"
 #include "sessions/live_view/live_view.h"
 #include "sessions/orchestrator/rig_operator.h"
+#include "sessions/setup/setup.h"
 
 namespace msmcal::live_view {
 
 struct WebOperatorOptions {
-  // Per step-1 pose index: where the sliding plate goes (ConsoleOperatorOptions::pose_hints).
-  std::vector<std::string> pose_hints;
+  // Per step-1 pose index: where the sliding plate goes (ConsoleOperatorOptions::poses).
+  std::vector<setup::PoseGeometry> poses;
   // Also gets every instruction block and the outcome of each answer (the terminal; may be
   // empty).
   std::function<void(const std::string& text)> echo;
@@ -61,6 +63,8 @@ class WebOperator : public orchestrator::RigOperator {
   // Shows the block until Ready; throws OperatorAbort on Abort.
   void Ask(const std::string& instructions, int number, int step, size_t index);
   void SeeFirstCall(bool is_background);
+  // Asks for setups_.setups[k] unless it is the set-up confirmed last.
+  void Enter(int k);
   void Echo(const std::string& text) const;
 
   const dataset::Recording& plan_;
@@ -72,6 +76,8 @@ class WebOperator : public orchestrator::RigOperator {
   bool order_known_ = false;
   bool background_first_ = false;
   int64_t confirmed_ns_ = 0;
+  setup::SetupPlan setups_;
+  int current_ = -1;  // the set-up confirmed last
 };
 
 // The exception messages (what session_log.txt records).

@@ -18,6 +18,7 @@
 
 #include "sessions/live_view/live_server.h"
 #include "sessions/live_view/web_operator.h"
+#include "sessions/setup/setup.h"
 #include "sessions/orchestrator/console_operator.h"
 
 namespace msmcal::live_view {
@@ -38,6 +39,13 @@ dataset::Recording SmallPlan() {
   p.step2 = {{"step2/0000.png", dataset::Step2Kind::kNeutral, {}, {1, 2, 3}},
              {"step2/0001.png", dataset::Step2Kind::kScan, {0, 1}, {1, 2, 3}}};
   return p;
+}
+
+// The instruction block of set-up k as the page shows it (without its leading newline).
+std::string BlockText(const dataset::Recording& plan, int k) {
+  std::string t = setup::PlanSetups(plan, {}).setups.at(static_cast<size_t>(k)).text;
+  if (!t.empty() && t.front() == '\n') t.erase(0, 1);
+  return t;
 }
 
 // A checkerboard of (cols + 1) x (rows + 1) squares of `square` px on a mid-grey background.
@@ -298,7 +306,7 @@ TEST(WebOperator, ReadyConfirmsThenTheInnerOperatorChangesTheRig) {
     }));
     const json s = State(view);
     EXPECT_EQ(s["prompt"]["instructions"].get<std::string>(),
-              orchestrator::DescribeStep1Frame(plan, k - 1, {}, k, 6).substr(1));
+              BlockText(plan, setup::PlanSetups(plan, {}).step1_setup[k - 1]));
     EXPECT_EQ(rig.calls.size(), static_cast<size_t>(k - 1));  // not before Ready
     ASSERT_EQ(view.Submit(token, Command::kReady, s["prompt"]["id"]).http_status, 200);
   }
@@ -447,7 +455,7 @@ TEST_F(ServerTest, StateInstructionImageAndButtons) {
   const json s = json::parse(state->body);
   EXPECT_EQ(s["state"], "waiting");
   EXPECT_EQ(s["prompt"]["instructions"].get<std::string>(),
-            orchestrator::DescribeStep2Frame(plan_, 1, 6, 6).substr(1));
+            BlockText(plan_, setup::PlanSetups(plan_, {}).step2_setup[1]));
   const std::string id = std::to_string(s["prompt"]["id"].get<int64_t>());
 
   // Without the header, without control, without a prompt id: refused, nothing happens.
