@@ -4,6 +4,8 @@
 #include <unistd.h>
 #include <yaml-cpp/yaml.h>
 
+#include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <ctime>
 #include <fstream>
@@ -230,8 +232,14 @@ orchestrator::SessionResult RunLabAcquisition(const fs::path& out,
   oo.on_frame = GuidedObserver(out, options.plan.world_board, options.plan.sliding_board,
                                options.progress, nullptr);
 
+  // Frames count once they reached the host one exposure + one frame period (the transfer of a
+  // free-running camera) + 100 ms after the set-up took effect: frames in flight are discarded.
+  const int64_t settle_ns = std::max<int64_t>(
+      300'000'000, std::llround((oo.camera_exposure_us.value_or(0) * 1e3) +
+                                1e9 / oo.camera_frame_rate_hz + 100e6));
   if (!hook.empty()) {
     orchestrator::HookOperatorOptions ho;
+    ho.settle_ns = settle_ns;
     ho.command = hook;
     ho.timeout_ms = options.hook_timeout_ms;
     ho.poses = options.poses;
@@ -245,6 +253,7 @@ orchestrator::SessionResult RunLabAcquisition(const fs::path& out,
     return result;
   }
   orchestrator::ConsoleOperatorOptions co;
+  co.settle_ns = settle_ns;
   co.input_fd = options.input_fd;
   co.output_fd = options.output_fd;
   co.mcu_device = oo.mcu.device;

@@ -262,6 +262,23 @@ class Keysight33500 final : public FunctionGenerator {
     Check("configure " + ch_name);
   }
 
+  void ReplaceArb(int channel, const ChannelSetup& s) override {
+    RequireChannel(channel);
+    const std::string ch_name = options_.name + ".ch" + std::to_string(channel);
+    if (s.waveform != Waveform::kArb || s.arb_name.empty())
+      throw std::invalid_argument(Who() + ": ReplaceArb needs an arb setup with a name");
+    if (std::string e = CheckLimits(ch_name, s, options_.limits[channel - 1]); !e.empty()) {
+      throw GeneratorError(GeneratorError::Kind::kLimit, "refused: " + e);
+    }
+    const std::string src = "SOUR" + std::to_string(channel) + ":";
+    Send("FORM:BORD SWAP");
+    client_.WriteBlock(src + "DATA:ARB:DAC " + s.arb_name + ",",
+                       scpi::Int16Payload(s.arb_samples, /*big_endian=*/false));
+    Check(src + "DATA:ARB:DAC " + s.arb_name);
+    Send(src + "FUNC:ARB " + s.arb_name);
+    Check("replace arb " + ch_name);
+  }
+
   void SetOutput(int channel, bool on) override {
     RequireChannel(channel);
     const std::string cmd = "OUTP" + std::to_string(channel) + (on ? " ON" : " OFF");

@@ -67,7 +67,7 @@ void RigGenerators::VerifyLock() {
   });
 }
 
-void RigGenerators::Apply(const RigSignalPlan& plan) {
+void RigGenerators::Apply(const RigSignalPlan& plan, bool fast_on, bool slow_on) {
   Guarded([&] {
     master_.Reset();
     slave_.Reset();
@@ -80,13 +80,23 @@ void RigGenerators::Apply(const RigSignalPlan& plan) {
     slave_.ConfigureChannel(2, plan.unit2_ch2);
     master_.ArmStart(StartTrigger::kBus, /*trigger_out=*/true);
     slave_.ArmStart(StartTrigger::kExternal, /*trigger_out=*/false);
-    for (int c = 1; c <= 2; ++c) {
-      master_.SetOutput(c, true);
-      slave_.SetOutput(c, true);
-    }
+    if (fast_on) master_.SetOutput(1, true);
+    if (slow_on) master_.SetOutput(2, true);
+    for (int c = 1; c <= 2; ++c) slave_.SetOutput(c, true);
     master_.Trigger();
     VerifyLock();
   });
+}
+
+void RigGenerators::SetDrives(bool fast_on, bool slow_on) {
+  Guarded([&] {
+    master_.SetOutput(1, fast_on);
+    master_.SetOutput(2, slow_on);
+  });
+}
+
+void RigGenerators::ReplaceLaserArb(const ChannelSetup& laser) {
+  Guarded([&] { slave_.ReplaceArb(1, laser); });
 }
 
 bool RigGenerators::SafeState() noexcept {

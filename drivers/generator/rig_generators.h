@@ -31,8 +31,17 @@ class RigGenerators {
 
   // Reset, reference (slave locked to the master's 10 MHz, verified), channels, arm, outputs
   // on, start trigger, final lock check. Throws GeneratorError(kLock) when the slave is not
-  // locked, before any output is switched on.
-  void Apply(const RigSignalPlan& plan);
+  // locked, before any output is switched on. The drive outputs (unit 1 ch1 fast, ch2 slow) are
+  // switched on only as `fast_on` / `slow_on` say; their sines run (the start trigger starts all
+  // four channels) either way, so that SetDrives later keeps the common time base.
+  void Apply(const RigSignalPlan& plan, bool fast_on = true, bool slow_on = true);
+  // Drive outputs on/off (OUTPut only: the sines keep running from the start trigger, so the
+  // drives, the laser arb and the clock stay phase-locked). Safe state on failure.
+  void SetDrives(bool fast_on, bool slow_on);
+  // A new laser pattern on unit 2 ch1 (FunctionGenerator::ReplaceArb: same name, points and
+  // rate as the applied plan's; no re-arm, so the clock and the drives are not disturbed).
+  // Safe state on failure.
+  void ReplaceLaserArb(const ChannelSetup& laser);
   // Throws GeneratorError(kLock) unless the slave runs on the external reference. Call before
   // any recording starts.
   void VerifyLock();

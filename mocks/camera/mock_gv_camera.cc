@@ -58,6 +58,7 @@ std::string MockGvCameraOptions::Validate() const {
 struct MockGvCamera::Impl {
   ArvGvFakeCamera* server = nullptr;
   ArvFakeCamera* fake = nullptr;  // owned by server
+  uint32_t initial_exposure_us = 0;  // the register when serving began
   std::string xml_path;
   // The lost_after_frames fault: the fill callback (on the server's thread, which unref joins)
   // signals `loser`, which stops the server.
@@ -125,6 +126,14 @@ void MockGvCamera::Fill(void* buffer_ptr, void* self_ptr, uint32_t /*exposure_us
   }
 }
 
+std::optional<double> MockGvCamera::ClientExposureUs() const {
+  if (!impl_ || !impl_->fake) return std::nullopt;
+  guint32 v = 0;
+  arv_fake_camera_read_register(impl_->fake, ARV_FAKE_CAMERA_REGISTER_EXPOSURE_TIME_US, &v);
+  if (v == impl_->initial_exposure_us || v == 0) return std::nullopt;
+  return static_cast<double>(v);
+}
+
 std::unique_ptr<MockGvCamera> MockGvCamera::Start(const MockGvCameraOptions& options,
                                                   FrameSource source, std::string* error) {
   if (std::string message = options.Validate(); !message.empty()) {
@@ -160,6 +169,8 @@ std::unique_ptr<MockGvCamera> MockGvCamera::Start(const MockGvCameraOptions& opt
     return nullptr;  // destructor cleans up
   }
   impl.fake = arv_gv_fake_camera_get_fake_camera(impl.server);
+  arv_fake_camera_read_register(impl.fake, ARV_FAKE_CAMERA_REGISTER_EXPOSURE_TIME_US,
+                                &impl.initial_exposure_us);
   const int width = options.width > 0 ? options.width : options.sensor_width;
   const int height = options.height > 0 ? options.height : options.sensor_height;
   arv_fake_camera_write_register(impl.fake, ARV_FAKE_CAMERA_REGISTER_SENSOR_WIDTH,

@@ -12,6 +12,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <functional>
+#include <optional>
 #include <memory>
 #include <string>
 #include <vector>
@@ -62,6 +63,9 @@ class MockGvCamera {
   uint64_t frames_served() const { return frames_served_.load(); }
   // True once the lost_after_frames fault has stopped the server.
   bool lost() const { return lost_.load(); }
+  // The exposure a client set through GenICam (ExposureTime / ExposureTimeAbs, one register),
+  // in microseconds; none while the register still holds the value it had when serving began.
+  std::optional<double> ClientExposureUs() const;
   const MockGvCameraOptions& options() const { return options_; }
 
  private:

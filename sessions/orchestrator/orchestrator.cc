@@ -11,6 +11,7 @@
 #include <opencv2/core.hpp>
 #include <optional>
 #include <stdexcept>
+#include <thread>
 
 #include "acquisition/hall/hall_csv_writer.h"
 #include "acquisition/hall/hall_recorder.h"
@@ -37,6 +38,9 @@ std::string OrchestratorOptions::Validate() const {
   if (max_stale_frames < 0)
     return "OrchestratorOptions.max_stale_frames = " + std::to_string(max_stale_frames) +
            ": must be >= 0";
+  if (!(drive_settle_periods >= 0 && drive_settle_periods <= 1000))
+    return "OrchestratorOptions.drive_settle_periods = " + std::to_string(drive_settle_periods) +
+           ": must be in [0, 1000]";
   if (max_gate_attempts < 1)
     return "OrchestratorOptions.max_gate_attempts = " + std::to_string(max_gate_attempts) +
            ": must be >= 1";
@@ -233,6 +237,23 @@ RigCheckResult CheckRig(const OrchestratorOptions& options, const dataset::Recor
   } catch (const std::exception& e) {
     r.problems.push_back(std::string("signal design: ") + e.what());
   }
+  // A frame must collect every trigger of its pattern: expose at least one pattern period.
+  if (options.camera_exposure_us) {
+    try {
+      const double period_s = signal::PatternPeriod(options.generators.signals.fast.frequency_hz,
+                                                    options.generators.signals.slow.frequency_hz);
+      if (*options.camera_exposure_us < period_s * 1e6 * (1 - 1e-9)) {
+        char buf[240];
+        std::snprintf(buf, sizeof(buf),
+                      "camera.exposure_us = %.6g is shorter than the drives' pattern period "
+                      "%.6g us: a frame would miss triggers of its pattern",
+                      *options.camera_exposure_us, period_s * 1e6);
+        r.problems.push_back(buf);
+      }
+    } catch (const std::exception&) {
+      // The signal design's own problem is listed above.
+    }
+  }
   // Camera: sensor size and pixel format.
   camera::OpenCameraResult opened = instruments.OpenCamera(options.camera);
   if (!opened.camera) {
@@ -338,8 +359,14 @@ acquisition::HallRecorderResult RecordHall(
 
 }  // namespace
 
-gen::RigSignalPlan PlanSessionSignals(const gen::RigSignalsConfig& config,
-                                      const dataset::Recording& plan) {
+namespace {
+
+// The session plan with the laser arb rebuilt from `triggers` (plan trigger entries): each at the
+// arb sample nearest its t_s, so the laser fires within half a sample of the time session.yaml
+// records. `what` names the table in messages.
+gen::RigSignalPlan PlanWithTriggers(const gen::RigSignalsConfig& config,
+                                    const dataset::Recording& plan,
+                                    const std::vector<dataset::Trigger>& triggers) {
   gen::RigSignalPlan p = gen::PlanRigSignals(config);
   const double period = p.trigger.pattern_period_s;
   if (plan.drive.pattern_period_s > 0 &&
@@ -354,7 +381,7 @@ gen::RigSignalPlan PlanSessionSignals(const gen::RigSignalsConfig& config,
   const double rate = d.arb.sample_rate_sps;
   d.pulse_samples = std::max<int64_t>(
       1, static_cast<int64_t>(std::ceil(config.trigger.pulse_width_s * rate - 1e-9)));
-  for (const auto& t : plan.triggers) {
+  for (const auto& t : triggers) {
     if (!(t.t_s >= 0 && t.t_s < period))
       throw std::invalid_argument("session plan: triggers[" + std::to_string(t.j) +
                                   "].t_s = " + std::to_string(t.t_s) + ": outside [0, " +
@@ -366,7 +393,7 @@ gen::RigSignalPlan PlanSessionSignals(const gen::RigSignalsConfig& config,
     d.max_quantisation_error_s =
         std::max(d.max_quantisation_error_s, std::abs(d.times_s.back() - t.t_s));
   }
-  d.duty = static_cast<double>(d.pulse_samples * static_cast<int64_t>(plan.triggers.size())) /
+  d.duty = static_cast<double>(d.pulse_samples * static_cast<int64_t>(triggers.size())) /
            static_cast<double>(d.arb.points);
   if (d.duty > config.trigger.max_duty)
     throw std::invalid_argument("session plan: laser duty " + std::to_string(d.duty) +
@@ -376,6 +403,57 @@ gen::RigSignalPlan PlanSessionSignals(const gen::RigSignalsConfig& config,
   p.unit2_ch1.arb_samples = signal::TriggerArbSamples(d);
   p.unit2_ch1.arb_sample_rate_sps = rate;
   return p;
+}
+
+}  // namespace
+
+gen::RigSignalPlan PlanSessionSignals(const gen::RigSignalsConfig& config,
+                                      const dataset::Recording& plan) {
+  return PlanWithTriggers(config, plan, plan.triggers);
+}
+
+FrameSignals Step1Signals(const dataset::Recording& plan) {
+  FrameSignals s;
+  if (!plan.triggers.empty()) s.triggers = {plan.triggers.front().j};
+  return s;
+}
+
+FrameSignals Step2Signals(const dataset::Recording& plan, const dataset::Step2Frame& frame) {
+  FrameSignals s;
+  switch (frame.kind) {
+    case dataset::Step2Kind::kNeutral:
+      return Step1Signals(plan);
+    case dataset::Step2Kind::kFastOnly:
+      s.fast_on = true;
+      break;
+    case dataset::Step2Kind::kScan:
+      s.fast_on = s.slow_on = true;
+      break;
+  }
+  s.triggers = frame.triggers;
+  return s;
+}
+
+FrameSignals BackgroundSignals(const dataset::Recording& plan) {
+  FrameSignals s = Step1Signals(plan);
+  s.fast_on = s.slow_on = true;
+  return s;
+}
+
+gen::RigSignalPlan PlanFrameSignals(const gen::RigSignalsConfig& config,
+                                    const dataset::Recording& plan, const FrameSignals& frame) {
+  std::vector<dataset::Trigger> triggers;
+  for (int j : frame.triggers) {
+    const auto it = std::find_if(plan.triggers.begin(), plan.triggers.end(),
+                                 [j](const dataset::Trigger& t) { return t.j == j; });
+    if (it == plan.triggers.end())
+      throw std::invalid_argument("session plan: a frame names trigger " + std::to_string(j) +
+                                  ", which is not in the trigger table");
+    triggers.push_back(*it);
+  }
+  if (triggers.empty())
+    throw std::invalid_argument("session plan: a frame's laser pattern has no trigger");
+  return PlanWithTriggers(config, plan, triggers);
 }
 
 RigCheckResult CheckRigOnly(const OrchestratorOptions& options, const dataset::Recording* plan,
@@ -650,17 +728,62 @@ SessionResult RunSession(const OrchestratorOptions& options, const dataset::Reco
   });
   int accepted_total = 0;
   try {
-    const gen::RigSignalPlan signals = PlanSessionSignals(options.generators.signals, plan);
-    rig.Apply(signals);
+    // The whole table is checked once (duty, times); each frame then plays its own pattern.
+    (void)PlanSessionSignals(options.generators.signals, plan);
+    FrameSignals playing = Step1Signals(plan);
+    const gen::RigSignalPlan signals =
+        PlanFrameSignals(options.generators.signals, plan, playing);
+    rig.Apply(signals, playing.fast_on, playing.slow_on);
     rig.VerifyLock();
-    char buf[200];
-    std::snprintf(
-        buf, sizeof(buf),
-        "generators: drives, clock and the plan's %zu laser triggers (arb %lld points "
-        "at %.6g Sa/s, max quantisation %.3g us) applied, outputs on, locked",
-        signals.trigger.times_s.size(), static_cast<long long>(signals.trigger.arb.points),
-        signals.trigger.arb.sample_rate_sps, signals.trigger.max_quantisation_error_s * 1e6);
+    char buf[240];
+    std::snprintf(buf, sizeof(buf),
+                  "generators: drives (outputs off), clock and a one-pulse laser pattern (arb "
+                  "%lld points at %.6g Sa/s, max quantisation %.3g us) applied and started, "
+                  "locked",
+                  static_cast<long long>(signals.trigger.arb.points),
+                  signals.trigger.arb.sample_rate_sps,
+                  signals.trigger.max_quantisation_error_s * 1e6);
     log.Line(buf);
+    const double pattern_period_s = signals.trigger.pattern_period_s;
+    auto on_off = [](bool on) { return on ? "on" : "off"; };
+    // Makes the generators play `want` (what a frame or a recording needs): a new laser pattern
+    // through ReplaceLaserArb, drive outputs through SetDrives; never a re-arm, so the drives,
+    // the laser and the clock keep the start trigger's time base. After a drive change, waits
+    // drive_settle_periods pattern periods before returning.
+    auto play = [&](const FrameSignals& want, const std::string& what) {
+      if (want == playing) return;
+      const bool drives = want.fast_on != playing.fast_on || want.slow_on != playing.slow_on;
+      if (want.triggers != playing.triggers) {
+        const gen::RigSignalPlan p = PlanFrameSignals(options.generators.signals, plan, want);
+        std::string ids;
+        for (int j : want.triggers) ids += (ids.empty() ? "" : ",") + std::to_string(j);
+        transcript.Comment(what + ": laser pattern of triggers [" + ids + "] (same arb, points " +
+                           "and rate; not re-armed)");
+        rig.ReplaceLaserArb(p.unit2_ch1);
+        log.Line("generators: " + what + ": laser pattern " + std::to_string(want.triggers.size()) +
+                 " trigger(s) [" + ids + "]");
+      }
+      if (drives) {
+        transcript.Comment(what + ": fast drive " + on_off(want.fast_on) + ", slow drive " +
+                           on_off(want.slow_on));
+        rig.SetDrives(want.fast_on, want.slow_on);
+      }
+      playing = want;
+      if (drives) {
+        const double settle_s = options.drive_settle_periods * pattern_period_s;
+        char line[200];
+        std::snprintf(line, sizeof(line),
+                      "generators: %s: fast drive %s, slow drive %s; settling %.3g s (%.3g "
+                      "pattern periods)",
+                      what.c_str(), on_off(want.fast_on), on_off(want.slow_on), settle_s,
+                      options.drive_settle_periods);
+        log.Line(line);
+        // The drive's settle: generator time runs on the host's steady clock to within the LAN
+        // latency; frames are asked for (and the operator's freshness starts) only afterwards.
+        if (settle_s > 0)
+          std::this_thread::sleep_for(std::chrono::duration<double>(settle_s));
+      }
+    };
 
     if (camera::Status s = inst.cam->Start(); !s)
       throw std::runtime_error("camera: start streaming: " + s.message);
@@ -763,6 +886,7 @@ SessionResult RunSession(const OrchestratorOptions& options, const dataset::Reco
         const auto& f = plan.step1[i];
         FrameOutcome fo;
         if (!from_journal(f.file, &fo)) {
+          play(Step1Signals(plan), f.file);
           rig_operator.PrepareStep1Frame(i);
           store::FrameRecord record;
           record.step = "step1";
@@ -846,6 +970,7 @@ SessionResult RunSession(const OrchestratorOptions& options, const dataset::Reco
           background_device = device;
         }
       }
+      play(BackgroundSignals(plan), "Hall background");
       emit(HallStarted("background", background_device, log));
       const auto r = RecordHall(*inst.mcu, out / "hall" / "background.csv", options,
                                 options.background_seconds, nullptr);
@@ -875,6 +1000,7 @@ SessionResult RunSession(const OrchestratorOptions& options, const dataset::Reco
                          const auto& f = plan.step2[i];
                          FrameOutcome fo;
                          if (!from_journal(f.file, &fo)) {
+                           play(Step2Signals(plan, f), f.file);
                            rig_operator.PrepareStep2Frame(i);
                            store::FrameRecord record;
                            record.step = "step2";

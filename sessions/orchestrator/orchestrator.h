@@ -81,6 +81,12 @@ struct OrchestratorOptions {
   int frame_timeout_ms = 10000;  // per NextFrame
   int max_stale_frames = 50;     // frames discarded while waiting for the new setup
   int max_gate_attempts = 2;     // fresh frames tried per frame before it is rejected
+  // Settle time after a drive output is switched (the resonant fast axis needs many cycles to
+  // reach its steady amplitude): this many pattern periods of generator time are waited for
+  // (on the host's steady clock, from the OUTPut command's reply) before the operator is asked
+  // for the frame, so that only frames exposed after the settle count (the operator's
+  // FrameShowsCurrentSetup then rules out frames in flight). 0: no wait.
+  double drive_settle_periods = 5.0;
   bool run_quality_gate = true;
   GateOptions gate;
   hall_mcu::HallMcuOptions mcu;  // device is asked from the operator per recording
@@ -152,6 +158,32 @@ struct SessionResult {
 // the table violates the trigger limits (duty).
 gen::RigSignalPlan PlanSessionSignals(const gen::RigSignalsConfig& config,
                                       const dataset::Recording& plan);
+
+// What the generators play for one frame (docs/plan.md "Per-frame signals"): the drive outputs
+// and the laser pattern (plan trigger ids j; the arb is rebuilt from exactly these). The clock
+// (unit 2 ch2) and the laser output stay on, and all four channels keep the time base of the
+// start trigger.
+struct FrameSignals {
+  bool fast_on = false, slow_on = false;
+  std::vector<int> triggers;
+  bool operator==(const FrameSignals& o) const {
+    return fast_on == o.fast_on && slow_on == o.slow_on && triggers == o.triggers;
+  }
+  bool operator!=(const FrameSignals& o) const { return !(*this == o); }
+};
+// Step 1 (MSM not mounted): drives off, one pulse per period (the plan's first trigger), so
+// the plate shows one dot per unblocked beam.
+FrameSignals Step1Signals(const dataset::Recording& plan);
+// Step 2: neutral as step 1; fast_only: fast drive on, the frame's triggers; scan: both drives,
+// the frame's triggers.
+FrameSignals Step2Signals(const dataset::Recording& plan, const dataset::Step2Frame& frame);
+// The background Hall recording: both coils driven, one pulse per period.
+FrameSignals BackgroundSignals(const dataset::Recording& plan);
+// The generator plan with the laser arb of `frame.triggers` (same timing rules as
+// PlanSessionSignals: the laser fires at the plan's t_s to within half a sample). Throws
+// std::invalid_argument for a trigger id not in the table or an empty pattern.
+gen::RigSignalPlan PlanFrameSignals(const gen::RigSignalsConfig& config,
+                                    const dataset::Recording& plan, const FrameSignals& frame);
 
 // The rig check alone (what RunSession does first): identifies both generators, resets them and
 // checks that unit 2 locks to unit 1's 10 MHz reference, checks the signal design against the

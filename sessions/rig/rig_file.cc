@@ -11,6 +11,7 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "processing/signal/rig_signals.h"
 #include "common/text_io.h"
 
 namespace msmcal::rig {
@@ -149,7 +150,7 @@ YAML::Node NodeOfField(const YAML::Node& root, const std::string& message) {
   return at;
 }
 
-void ReadCamera(const Reader& r, const YAML::Node& root, RigCamera* c) {
+void ReadCamera(const Reader& r, const YAML::Node& root, double pattern_period_s, RigCamera* c) {
   const std::string f = "camera";
   const YAML::Node n = r.Map(root, "camera", f,
                              {"kind", "address", "device", "frame_rate_hz", "exposure_us", "width",
@@ -175,6 +176,17 @@ void ReadCamera(const Reader& r, const YAML::Node& root, RigCamera* c) {
     r.Fail(n["exposure_us"], f + ".exposure_us",
            " = " + Num(c->exposure_us) +
                ": must be <= the frame period 1e6 / frame_rate_hz = " + Num(period_us) + " us");
+  }
+  // A frame collects every trigger of its pattern only when it is exposed for a whole pattern
+  // period (each trigger fires once per period).
+  if (pattern_period_s > 0 && c->exposure_us < pattern_period_s * 1e6 * (1 - 1e-9)) {
+    r.Fail(n["exposure_us"], f + ".exposure_us",
+           " = " + Num(c->exposure_us) +
+               ": must be >= the drives' pattern period (generators.signals.drive: 1 / gcd of "
+               "the fast and slow frequencies) = " +
+               Num(pattern_period_s * 1e6) +
+               " us, so that a frame collects every trigger of its pattern (lower "
+               "camera.frame_rate_hz to at most 1e6 / exposure_us)");
   }
   geometry::CameraModel& m = c->model;
   m.width = r.Int(n, "width", f + ".width", std::nullopt, 16, 30000);
@@ -255,7 +267,10 @@ RigFile ParseRigFile(const std::string& yaml_text, const std::string& origin) {
     r.Fail(at, e, "");
   }
   rf.hall_mcu = hall_mcu::ParseHallMcuConfig(yaml_text, origin);
-  ReadCamera(r, root, &rf.camera);
+  ReadCamera(r, root,
+             signal::PatternPeriod(rf.generators.signals.fast.frequency_hz,
+                                   rf.generators.signals.slow.frequency_hz),
+             &rf.camera);
 
   const YAML::Node boards = r.Map(root, "boards", "boards", {"world", "sliding"});
   rf.world_board = ReadBoard(r, boards, "world");

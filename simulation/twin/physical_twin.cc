@@ -106,6 +106,8 @@ struct PhysicalTwin::Impl {
   std::shared_ptr<const sim::RigSimulator> sim;
   std::unique_ptr<sim::MockGeneratorPair> generators;
   std::unique_ptr<sim::MockGvCamera> camera;
+  // The served camera, for its exposure register (set once serving, read on its frame thread).
+  std::atomic<const sim::MockGvCamera*> served_camera{nullptr};
   std::unique_ptr<sim::MockMcu> mcu;
   std::string hall_device;
 
@@ -254,9 +256,20 @@ struct PhysicalTwin::Impl {
     if (p.drive.mode != sim::DriveMode::kScan || !p.drive.fast_on || !lp.playing ||
         lp.rising.empty())
       return;
+    std::vector<double> times = PatternTimes(lp, p.drive.t0_ns);
     std::lock_guard lock(applied_mu);
+    // Under the same drive (same start), the table is every pulse played while scanning: a
+    // session plays each frame's triggers in turn (docs/twin.md, "The truth").
+    if (applied_drive && SameDrive(*applied_drive, p.drive)) {
+      for (double t : applied_times) {
+        const bool seen = std::any_of(times.begin(), times.end(),
+                                      [t](double u) { return std::abs(u - t) < 1e-9; });
+        if (!seen) times.push_back(t);
+      }
+      std::sort(times.begin(), times.end());
+    }
     applied_drive = p.drive;
-    applied_times = PatternTimes(lp, p.drive.t0_ns);
+    applied_times = std::move(times);
   }
 
   std::vector<sim::PulseAtPose> Pulses(int64_t from_ns, int64_t to_ns) const {
@@ -296,6 +309,14 @@ struct PhysicalTwin::Impl {
   mutable std::mutex stamps_mu;
   std::deque<std::pair<int64_t, FrameStamp>> stamps;  // (device timestamp, stamp)
 
+  // The camera's exposure once its client set one (GenICam ExposureTime), else --exposure.
+  int64_t ExposureNs() const {
+    if (const sim::MockGvCamera* cam = served_camera.load())
+      if (const std::optional<double> us = cam->ClientExposureUs())
+        return static_cast<int64_t>(std::llround(*us * 1e3));
+    return static_cast<int64_t>(options.exposure_s * 1e9);
+  }
+
   sim::Scene Scene(int64_t end_ns, uint64_t* generation_out = nullptr) const {
     TwinState s;
     {
@@ -303,8 +324,7 @@ struct PhysicalTwin::Impl {
       s = state;
       if (generation_out) *generation_out = generation;
     }
-    const auto exposure_ns = static_cast<int64_t>(options.exposure_s * 1e9);
-    return sim->StateScene(ToRigState(s), Pulses(end_ns - exposure_ns, end_ns));
+    return sim->StateScene(ToRigState(s), Pulses(end_ns - ExposureNs(), end_ns));
   }
 
   void Fill(uint8_t* data, int width, int height, sim::SimPixelFormat fmt, int64_t timestamp_ns,
@@ -313,7 +333,7 @@ struct PhysicalTwin::Impl {
     FrameStamp stamp;
     const sim::Scene scene = Scene(end_ns, &stamp.generation);
     stamp.exposure_end_ns = end_ns;
-    stamp.exposure_start_ns = end_ns - static_cast<int64_t>(options.exposure_s * 1e9);
+    stamp.exposure_start_ns = end_ns - ExposureNs();
     {
       std::lock_guard lock(stamps_mu);
       stamps.emplace_back(timestamp_ns, stamp);
@@ -552,6 +572,7 @@ PhysicalTwin::PhysicalTwin(const PhysicalTwinOptions& options) : impl_(std::make
         &error);
     if (!m.camera)
       throw std::runtime_error("twin camera on " + options.camera_address + ": " + error);
+    m.served_camera.store(m.camera.get());
   }
 
   sim::MockMcuOptions mo;
@@ -616,6 +637,7 @@ PhysicalTwin::~PhysicalTwin() {
   }
   for (int fd : m.stop_pipe)
     if (fd >= 0) ::close(fd);
+  m.served_camera.store(nullptr);
   m.camera.reset();
   if (m.mcu) m.mcu->Stop();
   m.mcu.reset();

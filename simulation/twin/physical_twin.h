@@ -47,6 +47,8 @@ struct PhysicalTwinOptions {
   double camera_frame_rate_hz = 10.0;
   // Integration window of each frame (s), ending when the frame is filled. At least one pattern
   // period so that a frame shows every pulse of the trigger pattern.
+  // The exposure integrated when the camera's client has not set one (GenICam ExposureTime);
+  // once set, a frame integrates the camera's own exposure.
   double exposure_s = 0.5;
   std::string hall_link_path;  // symlink to the MCU's pty ("" : none; see hall_device())
   uint16_t hall_rate_hz = 1000;

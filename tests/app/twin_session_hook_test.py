@@ -9,10 +9,16 @@ the twin and finally asking for its truth. Checked: every set-up and the truth r
 found),
 both Hall recordings with readings at 1 kHz and clock edges at the pattern rate, and the truth's
 trigger table is the plan's (what the orchestrator uploaded, decoded from the arb by the twin).
+Step 2 (per-frame signals, docs/plan.md): every step 2 frame accepted (the gate counts the frame's
+own dots: the orchestrator plays each frame's drives and triggers), the twin integrating the
+camera's own exposure (the rig file's camera.exposure_us, set through GenICam ExposureTime);
+`msmcal solve` on the session folder solves, and its mirror planes are within 0.2 deg (normal)
+of the twin's truth, matched by trigger time.
 Runs in its own network namespace (ports 15025/15026, GigE Vision 3956).
 
 usage: twin_session_hook_test.py MSMCAL SOURCE_DIR
 """
+import math
 import os
 import re
 import select
@@ -54,8 +60,9 @@ def main():
         fail("plan: %s %s" % (p.stdout, p.stderr))
     plan_yaml = open(os.path.join(plan, "session.yaml")).read()
 
-    twin = subprocess.Popen([msmcal, "mock", "rig", "--rig", rig, "--hands", sock,
-                             "--exposure", "0.3"], stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    # No --exposure: the twin integrates the exposure the session sets on the camera.
+    twin = subprocess.Popen([msmcal, "mock", "rig", "--rig", rig, "--hands", sock],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE)
     try:
         buf, lines, fd = b"", [], twin.stdout.fileno()
         deadline = time.monotonic() + 60
@@ -87,11 +94,21 @@ def main():
         fail("set-ups not all confirmed: %r\n%s" % (setups, log[-3000:]))
     if "hook: truth request: exit status 0" not in log:
         fail("truth request not confirmed\n" + log[-3000:])
-    m = re.search(r"session written: (\d+)/(\d+) step-1", log)
+    m = re.search(r"session written: (\d+)/(\d+) step-1 and (\d+)/(\d+) step-2", log)
     if not m or m.group(1) != m.group(2):
         fail("step 1 frames: %s\n%s" % (m.group(0) if m else None, log[-3000:]))
-    for reason in re.findall(r"step 1: frame \d+/\d+ \S+ REJECTED: (.*)", log):
-        fail("step 1 frame rejected: " + reason)
+    for reason in re.findall(r"step [12]: frame \d+/\d+ \S+ REJECTED: (.*)", log):
+        fail("frame rejected: %s\n%s" % (reason, log[-3000:]))
+    if m.group(3) != m.group(4) or int(m.group(4)) < 3:
+        fail("step 2 frames: %s" % m.group(0))
+    # Per-frame signals through the drivers: drives switched and patterns replaced, never
+    # re-armed after the start (one *TRG).
+    transcript = open(os.path.join(out, "generators_transcript.txt")).read()
+    if transcript.count("unit1 > *TRG") != 1:
+        fail("the start trigger was sent %d times" % transcript.count("unit1 > *TRG"))
+    if "fast drive on, slow drive off" not in transcript or \
+            "laser pattern of triggers" not in transcript:
+        fail("no per-frame signal changes in the transcript")
     for name in ["background", "actual"]:
         h = re.search(r"Hall: %s (\d+) readings, (\d+) clock edges" % name, log)
         if not h or int(h.group(1)) < 900 or int(h.group(2)) < 4:
@@ -110,8 +127,42 @@ def main():
     worst = max(abs(a - b) for a, b in zip(got, want))
     if worst > 1e-6:  # half an arb sample at most
         fail("truth trigger times differ from the plan's by %g s" % worst)
-    print("%d set-ups, %s, truth: %d triggers (max %.2g s from the plan)" %
-          (len(setups), m.group(0), len(got), worst))
+    # The solve on the session folder, its planes against the twin's truth.
+    p = subprocess.run([msmcal, "solve", out, "--threads", "2"], capture_output=True, text=True,
+                       timeout=600)
+    if p.returncode != 0:
+        fail("solve: %s %s" % (p.stdout[-3000:], p.stderr[-3000:]))
+
+    def planes(path):
+        rows = []
+        for line in open(path).read().splitlines()[1:]:
+            if line and not line.startswith("#"):
+                f = line.split(",")
+                rows.append((float(f[1]), [float(x) for x in f[2:5]]))
+        return rows
+
+    def angle_deg(n, m_):
+        c = abs(sum(a * b for a, b in zip(n, m_))) / (
+            sum(a * a for a in n) ** 0.5 * sum(b * b for b in m_) ** 0.5)
+        return math.degrees(math.acos(min(1.0, c)))
+    true_planes = planes(truth)
+    # Per scan trigger of the truth, the solved plane at that time (a fast-only plane at the same
+    # trigger time is another pose: the nearer of the solved rows at that time is the scan's).
+    errors = []
+    for t, m_ in true_planes:
+        e = [angle_deg(n, m_) for u, n in planes(os.path.join(out, "results",
+                                                               "mirror_planes.csv"))
+             if abs(u - t) < 1e-6]
+        if e:
+            errors.append(min(e))
+    if len(errors) < 3:
+        fail("only %d of the truth's %d planes solved" % (len(errors), len(true_planes)))
+    rms = (sum(e * e for e in errors) / len(errors)) ** 0.5
+    if rms > 0.2:
+        fail("plane normal RMS vs truth %.3f deg (max %.3f) > 0.2 deg" % (rms, max(errors)))
+    print("%d set-ups, %s, truth: %d triggers (max %.2g s from the plan); solved %d planes, "
+          "normal RMS vs truth %.4f deg (max %.4f)" %
+          (len(setups), m.group(0), len(got), worst, len(errors), rms, max(errors)))
     print("PASS")
 
 

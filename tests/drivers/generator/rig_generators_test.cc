@@ -4,6 +4,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <atomic>
 #include <cmath>
 
@@ -102,6 +103,45 @@ TEST(RigGeneratorsTest, MockSignalsMatchTheDesign) {
     EXPECT_GT(r.pair.unit(2).SignalAt(2, kT0Ns + m * period_ns + 1000), 3.0);
     EXPECT_LT(r.pair.unit(2).SignalAt(2, kT0Ns + m * period_ns - 1000), 0.3);
   }
+  EXPECT_TRUE(r.rig->SafeState());
+  EXPECT_TRUE(r.AllOff());
+}
+
+// Per-frame signals (docs/plan.md): drives started with their outputs off, then switched, and
+// the laser pattern replaced, all without a re-arm: every channel keeps the start trigger's time
+// base, the laser plays the new samples.
+TEST(RigGeneratorsTest, DrivesSwitchAndLaserPatternChangeKeepTheTimeBase) {
+  Rig r;
+  ASSERT_EQ(r.config.Validate(), "");
+  RigSignalPlan plan = PlanRigSignals(r.config.signals);
+  r.Open();
+  r.rig->Apply(plan, /*fast_on=*/false, /*slow_on=*/false);
+  EXPECT_FALSE(r.pair.unit(1).Signal(1).output_on);
+  EXPECT_FALSE(r.pair.unit(1).Signal(2).output_on);
+  EXPECT_TRUE(r.pair.unit(1).Signal(1).running);  // started by the trigger all the same
+  EXPECT_TRUE(r.pair.unit(2).Signal(1).output_on);
+  EXPECT_TRUE(r.pair.unit(2).Signal(2).output_on);
+
+  r.clock_ns += 3'000'000'000;  // later, generator time 3 s
+  r.rig->SetDrives(true, false);
+  EXPECT_TRUE(r.pair.unit(1).Signal(1).output_on);
+  EXPECT_FALSE(r.pair.unit(1).Signal(2).output_on);
+  // One trigger only: the first of the design.
+  ChannelSetup laser = plan.unit2_ch1;
+  std::fill(laser.arb_samples.begin(), laser.arb_samples.end(), int16_t{-32767});
+  const int64_t index = plan.trigger.sample_index.front();
+  for (int64_t k = 0; k < plan.trigger.pulse_samples; ++k)
+    laser.arb_samples[static_cast<size_t>(index + k)] = 32767;
+  r.rig->ReplaceLaserArb(laser);
+  const auto played = r.pair.unit(2).Signal(1);
+  ASSERT_TRUE(played.arb_samples);
+  EXPECT_EQ(*played.arb_samples, laser.arb_samples);
+  EXPECT_TRUE(played.running);
+  for (const auto& c : {r.pair.unit(1).Signal(1), r.pair.unit(1).Signal(2), played,
+                        r.pair.unit(2).Signal(2)})
+    EXPECT_EQ(c.start_time_ns, kT0Ns) << "a channel lost the common start";
+  r.rig->SetDrives(false, false);
+  EXPECT_FALSE(r.pair.unit(1).AnyOutputOn());
   EXPECT_TRUE(r.rig->SafeState());
   EXPECT_TRUE(r.AllOff());
 }

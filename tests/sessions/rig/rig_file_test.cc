@@ -60,8 +60,8 @@ TEST(RigFileTest, TheExampleReadsCompletely) {
   EXPECT_EQ(r.camera.kind, CameraKind::kGige);
   EXPECT_EQ(r.camera.address, "127.0.0.1");
   EXPECT_EQ(r.camera.OpenString(), "127.0.0.1");
-  EXPECT_DOUBLE_EQ(r.camera.frame_rate_hz, 10);
-  EXPECT_DOUBLE_EQ(r.camera.exposure_us, 20000);
+  EXPECT_DOUBLE_EQ(r.camera.frame_rate_hz, 4);
+  EXPECT_DOUBLE_EQ(r.camera.exposure_us, 220000);
   EXPECT_EQ(r.camera.model.width, 2448);
   EXPECT_EQ(r.camera.model.height, 2048);
   EXPECT_DOUBLE_EQ(r.camera.model.fx, 2000);
@@ -119,10 +119,17 @@ TEST(RigFileTest, RefusalsNameFieldValueAndLimit) {
   EXPECT_EQ(ErrorOf(Replace(t, "  poses: 7", "  poses: 70")),
             "rig.yaml:" + std::to_string(LineOf(t, "  poses: 7")) +
                 ": sliding_plate.poses = 70: must be in [2, 50]");
-  EXPECT_EQ(ErrorOf(Replace(t, "exposure_us: 20000", "exposure_us: 200000")),
-            "rig.yaml:" + std::to_string(LineOf(t, "exposure_us: 20000")) +
-                ": camera.exposure_us = 200000: must be <= the frame period 1e6 / frame_rate_hz "
-                "= 100000 us");
+  EXPECT_EQ(ErrorOf(Replace(t, "exposure_us: 220000", "exposure_us: 260000")),
+            "rig.yaml:" + std::to_string(LineOf(t, "exposure_us: 220000")) +
+                ": camera.exposure_us = 260000: must be <= the frame period 1e6 / frame_rate_hz "
+                "= 250000 us");
+  // Shorter than the pattern period (0.2 s): a frame would miss triggers of its pattern.
+  EXPECT_EQ(ErrorOf(Replace(t, "exposure_us: 220000", "exposure_us: 20000")),
+            "rig.yaml:" + std::to_string(LineOf(t, "exposure_us: 220000")) +
+                ": camera.exposure_us = 20000: must be >= the drives' pattern period "
+                "(generators.signals.drive: 1 / gcd of the fast and slow frequencies) = 200000 "
+                "us, so that a frame collects every trigger of its pattern (lower "
+                "camera.frame_rate_hz to at most 1e6 / exposure_us)");
   EXPECT_EQ(ErrorOf(Replace(t, "validate: [3]", "validate: [4]")),
             "rig.yaml:" + std::to_string(LineOf(t, "validate: [3]")) +
                 ": beams.validate[0] = 4: must be in [1, 3]");
