@@ -11,6 +11,7 @@
 #include <yaml-cpp/yaml.h>
 
 #include <CLI/CLI.hpp>
+#include <cctype>
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
@@ -134,10 +135,21 @@ class RigSweepParameters : public sweep::SweepParameters {
   }
   std::string Resolve(const std::string& yaml, const std::string& where, int repeat,
                       uint64_t* seed) const override {
-    // The rig file's own messages carry "<origin>:<line>:"; the line is the resolved point's,
-    // so the origin says which point it is.
-    const rig::RigFile rig = rig::ParseRigFile(
-        yaml, where + " (rig file " + rig_file_.string() + " with the point's values)");
+    // The rig file's own messages start "<origin>:<line>: "; the line would be the resolved
+    // document's, not the file's, so it is dropped: the origin names the point.
+    const std::string origin = where + " (" + rig_file_.string() + " with the point's values)";
+    rig::RigFile rig;
+    try {
+      rig = rig::ParseRigFile(yaml, origin);
+    } catch (const std::exception& e) {
+      std::string m = e.what();
+      if (m.rfind(origin + ":", 0) == 0) {
+        size_t k = origin.size() + 1;
+        while (k < m.size() && std::isdigit(static_cast<unsigned char>(m[k]))) ++k;
+        if (k < m.size() && m[k] == ':') m = origin + m.substr(k);
+      }
+      throw std::runtime_error(m);
+    }
     dataset::Recording plan;
     try {
       plan = plan::DesignSessionPlan(rig);

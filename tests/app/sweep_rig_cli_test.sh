@@ -34,6 +34,10 @@ refuse() {  # name, sweep text, patterns the message must contain...
     grep -q -F -- "$pattern" "$dir/$name.out" || {
       echo "FAIL: $name: no '$pattern' in the refusal"; exit 1; }
   done
+  # The line of the resolved document would mislead: the message names the point instead.
+  if grep -q "with the point's values):[0-9]" "$dir/$name.out"; then
+    echo "FAIL: $name: a line number of the resolved rig file in the refusal"; exit 1
+  fi
   test ! -e "$dir/$name"
 }
 # A reference that is no session folder is refused before the points (nothing runs without it).
@@ -49,4 +53,7 @@ refuse duty 'axes: {generators.signals.trigger.pulse_width_s: [1.0e-6, 1.0e-3]}'
   "generators.signals.trigger.pulse_width_s = 1.0e-3" "max_duty"
 refuse unknown 'axes: {mirror.fast.frequency_hz: [205]}' \
   "mirror.fast.frequency_hz: unknown rig file field"
+# The simulated sweep is unchanged: no --rig, its own options.
+"$msmcal" sweep "$src/config/sweep-example.yaml" --out "$dir/sim" --list > "$dir/sim.out"
+grep -q "^msmcal sweep: 16 points" "$dir/sim.out" || { cat "$dir/sim.out"; exit 1; }
 echo PASS
