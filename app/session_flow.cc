@@ -234,9 +234,9 @@ orchestrator::SessionResult RunLabAcquisition(const fs::path& out,
 
   // Frames count once they reached the host one exposure + one frame period (the transfer of a
   // free-running camera) + 100 ms after the set-up took effect: frames in flight are discarded.
-  const int64_t settle_ns = std::max<int64_t>(
-      300'000'000, std::llround((oo.camera_exposure_us.value_or(0) * 1e3) +
-                                1e9 / oo.camera_frame_rate_hz + 100e6));
+  const int64_t settle_ns =
+      std::max<int64_t>(300'000'000, std::llround((oo.camera_exposure_us.value_or(0) * 1e3) +
+                                                  1e9 / oo.camera_frame_rate_hz + 100e6));
   if (!hook.empty()) {
     orchestrator::HookOperatorOptions ho;
     ho.settle_ns = settle_ns;

@@ -98,7 +98,7 @@ class FunctionGenerator {
   // ConfigureChannel with the same name, point count and sample rate) and selects it again,
   // without clearing volatile memory, re-arming or touching the output: the running burst keeps
   // its start (the mock 33520B and the twin keep the channel's phase reference; on a real
-  // 33500 this is the documented assumption of docs/plan.md "Per-frame signals", to be checked
+  // 33500 this is the documented assumption of docs/lab-path.md "Per-frame signals", to be checked
   // on the bench with a scope on Trig Out and the laser input). Checks the limits first.
   virtual void ReplaceArb(int channel, const ChannelSetup& setup) = 0;
   virtual void SetReference(ReferenceSource source) = 0;

@@ -57,7 +57,7 @@ std::string MockGvCameraOptions::Validate() const {
 
 struct MockGvCamera::Impl {
   ArvGvFakeCamera* server = nullptr;
-  ArvFakeCamera* fake = nullptr;  // owned by server
+  ArvFakeCamera* fake = nullptr;     // owned by server
   uint32_t initial_exposure_us = 0;  // the register when serving began
   std::string xml_path;
   // The lost_after_frames fault: the fill callback (on the server's thread, which unref joins)

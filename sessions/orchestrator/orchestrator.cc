@@ -731,8 +731,7 @@ SessionResult RunSession(const OrchestratorOptions& options, const dataset::Reco
     // The whole table is checked once (duty, times); each frame then plays its own pattern.
     (void)PlanSessionSignals(options.generators.signals, plan);
     FrameSignals playing = Step1Signals(plan);
-    const gen::RigSignalPlan signals =
-        PlanFrameSignals(options.generators.signals, plan, playing);
+    const gen::RigSignalPlan signals = PlanFrameSignals(options.generators.signals, plan, playing);
     rig.Apply(signals, playing.fast_on, playing.slow_on);
     rig.VerifyLock();
     char buf[240];
@@ -780,8 +779,7 @@ SessionResult RunSession(const OrchestratorOptions& options, const dataset::Reco
         log.Line(line);
         // The drive's settle: generator time runs on the host's steady clock to within the LAN
         // latency; frames are asked for (and the operator's freshness starts) only afterwards.
-        if (settle_s > 0)
-          std::this_thread::sleep_for(std::chrono::duration<double>(settle_s));
+        if (settle_s > 0) std::this_thread::sleep_for(std::chrono::duration<double>(settle_s));
       }
     };
 

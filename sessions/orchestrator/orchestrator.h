@@ -159,7 +159,7 @@ struct SessionResult {
 gen::RigSignalPlan PlanSessionSignals(const gen::RigSignalsConfig& config,
                                       const dataset::Recording& plan);
 
-// What the generators play for one frame (docs/plan.md "Per-frame signals"): the drive outputs
+// What the generators play for one frame (docs/lab-path.md "Per-frame signals"): the drive outputs
 // and the laser pattern (plan trigger ids j; the arb is rebuilt from exactly these). The clock
 // (unit 2 ch2) and the laser output stay on, and all four channels keep the time base of the
 // start trigger.

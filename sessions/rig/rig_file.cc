@@ -11,8 +11,8 @@
 #include <sstream>
 #include <stdexcept>
 
-#include "processing/signal/rig_signals.h"
 #include "common/text_io.h"
+#include "processing/signal/rig_signals.h"
 
 namespace msmcal::rig {
 namespace {

@@ -9,7 +9,7 @@ the twin and finally asking for its truth. Checked: every set-up and the truth r
 found),
 both Hall recordings with readings at 1 kHz and clock edges at the pattern rate, and the truth's
 trigger table is the plan's (what the orchestrator uploaded, decoded from the arb by the twin).
-Step 2 (per-frame signals, docs/plan.md): every step 2 frame accepted (the gate counts the frame's
+Step 2 (per-frame signals, docs/lab-path.md): every step 2 frame accepted (the gate counts the frame's
 own dots: the orchestrator plays each frame's drives and triggers), the twin integrating the
 camera's own exposure (the rig file's camera.exposure_us, set through GenICam ExposureTime);
 `msmcal solve` on the session folder solves, and its mirror planes are within 0.2 deg (normal)

@@ -107,7 +107,7 @@ TEST(RigGeneratorsTest, MockSignalsMatchTheDesign) {
   EXPECT_TRUE(r.AllOff());
 }
 
-// Per-frame signals (docs/plan.md): drives started with their outputs off, then switched, and
+// Per-frame signals (docs/lab-path.md): drives started with their outputs off, then switched, and
 // the laser pattern replaced, all without a re-arm: every channel keeps the start trigger's time
 // base, the laser plays the new samples.
 TEST(RigGeneratorsTest, DrivesSwitchAndLaserPatternChangeKeepTheTimeBase) {
@@ -137,8 +137,8 @@ TEST(RigGeneratorsTest, DrivesSwitchAndLaserPatternChangeKeepTheTimeBase) {
   ASSERT_TRUE(played.arb_samples);
   EXPECT_EQ(*played.arb_samples, laser.arb_samples);
   EXPECT_TRUE(played.running);
-  for (const auto& c : {r.pair.unit(1).Signal(1), r.pair.unit(1).Signal(2), played,
-                        r.pair.unit(2).Signal(2)})
+  for (const auto& c :
+       {r.pair.unit(1).Signal(1), r.pair.unit(1).Signal(2), played, r.pair.unit(2).Signal(2)})
     EXPECT_EQ(c.start_time_ns, kT0Ns) << "a channel lost the common start";
   r.rig->SetDrives(false, false);
   EXPECT_FALSE(r.pair.unit(1).AnyOutputOn());
