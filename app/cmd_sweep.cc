@@ -8,8 +8,10 @@
 // event (a redrawn status line on a terminal); at the end a summary table (also DIR/summary.csv).
 #include <sys/ioctl.h>
 #include <unistd.h>
+#include <yaml-cpp/yaml.h>
 
 #include <CLI/CLI.hpp>
+#include <cctype>
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
@@ -25,8 +27,10 @@
 #include "mocks/rig/truth_io.h"
 #include "sessions/interchange/interchange_io.h"
 #include "sessions/orchestrator/orchestrator.h"
+#include "sessions/plan/session_plan.h"
 #include "sessions/report/session_report.h"
 #include "sessions/report/sweep_report.h"
+#include "sessions/rig/rig_file.h"
 #include "sessions/store/session_store.h"
 #include "sessions/sweep/sweep_plan.h"
 #include "sessions/sweep/sweep_runner.h"
@@ -42,6 +46,9 @@ struct SweepArgs {
   std::string plan;
   std::string out;
   std::string resume;
+  std::string rig;        // a rig sweep: the rig file whose fields the axes vary
+  std::string reference;  // a rig sweep: the session whose step 1 every point reuses
+  std::string operator_spec;
   std::string camera_address = "127.0.0.1";
   int threads = 2;
   bool list = false;
@@ -107,6 +114,59 @@ class ProgressPrinter {
   size_t width_ = 0;
 };
 
+// A rig sweep's options: the rig file's fields (docs/lab-path.md, "Rig sweeps"). The defaults
+// are the given rig file; an axis names a numeric field by its dotted path
+// (generators.signals.drive.fast.frequency_hz, generators.signals.trigger.spacing,
+// step2.scan_triggers_per_frame, ...). A point resolves only when its rig file passes every
+// check a session makes before touching the rig: the rig file's validation (channel limits:
+// frequency window, Vpp, offset), the plan's design (trigger design: duty, point count, sample
+// rate, at least 3 triggers) and the plan against the rig (CheckPlanAgainstRig).
+class RigSweepParameters : public sweep::SweepParameters {
+ public:
+  explicit RigSweepParameters(const fs::path& rig_file)
+      : rig_file_(rig_file), defaults_(YAML::Dump(YAML::Load(rig::LoadRigFile(rig_file).text))) {}
+  std::string Noun() const override { return "rig file field"; }
+  std::string PathHint() const override {
+    return "(dotted rig file key, e.g. generators.signals.drive.fast.frequency_hz)";
+  }
+  std::string DefaultsYaml() const override { return defaults_; }
+  std::string LoadFile(const fs::path& file) const override {
+    return YAML::Dump(YAML::Load(rig::LoadRigFile(file).text));
+  }
+  std::string Resolve(const std::string& yaml, const std::string& where, int repeat,
+                      uint64_t* seed) const override {
+    // The rig file's own messages start "<origin>:<line>: "; the line would be the resolved
+    // document's, not the file's, so it is dropped: the origin names the point.
+    const std::string origin = where + " (" + rig_file_.string() + " with the point's values)";
+    rig::RigFile rig;
+    try {
+      rig = rig::ParseRigFile(yaml, origin);
+    } catch (const std::exception& e) {
+      std::string m = e.what();
+      if (m.rfind(origin + ":", 0) == 0) {
+        size_t k = origin.size() + 1;
+        while (k < m.size() && std::isdigit(static_cast<unsigned char>(m[k]))) ++k;
+        if (k < m.size() && m[k] == ':') m = origin + m.substr(k);
+      }
+      throw std::runtime_error(m);
+    }
+    dataset::Recording plan;
+    try {
+      plan = plan::DesignSessionPlan(rig);
+    } catch (const std::exception& e) {
+      throw std::runtime_error(where + ": plan design: " + e.what());
+    }
+    const std::string problem = plan::CheckPlanAgainstRig(plan, rig);
+    if (!problem.empty()) throw std::runtime_error(where + ": " + problem);
+    if (seed) *seed = static_cast<uint64_t>(repeat);
+    return yaml;
+  }
+
+ private:
+  fs::path rig_file_;
+  std::string defaults_;
+};
+
 sweep::PointFolderState InspectPoint(const fs::path& folder) {
   sweep::PointFolderState s;
   s.folder_exists = fs::exists(folder);
@@ -126,6 +186,39 @@ sweep::PointFolderState InspectPoint(const fs::path& folder) {
   return s;
 }
 
+// `msmcal sweep SWEEP.yaml --rig RIG --reference SESSION --out DIR`: every point is checked
+// against the rig's limits here, before any folder is made or any instrument contacted.
+void RunRigSweep(const SweepArgs& args, const fs::path& plan_file, const fs::path& dir) {
+  if (args.reference.empty() && !args.list)
+    throw std::runtime_error(
+        "sweep --rig: give --reference SESSION_DIR (the session whose step 1 "
+        "every point reuses)");
+  if (!args.reference.empty()) {
+    const fs::path ref = args.reference;
+    for (const char* f : {"session.yaml", "camera.yaml"})
+      if (!fs::exists(ref / f))
+        throw std::runtime_error("sweep --rig: --reference " + ref.string() + ": no " + f +
+                                 " (not a complete session folder)");
+    if (!fs::exists(ref / "hall" / "background.csv"))
+      throw std::runtime_error("sweep --rig: --reference " + ref.string() +
+                               ": no hall/background.csv (the background Hall recording)");
+  }
+  const auto parameters = std::make_shared<const RigSweepParameters>(args.rig);
+  const sweep::SweepPlan plan = sweep::LoadSweepPlan(plan_file, parameters);
+  const std::vector<sweep::SweepPoint> points = sweep::ExpandPoints(plan);  // every point checked
+  std::printf("msmcal sweep: %zu rig points (%zu axes x %d repeats) from %s into %s\n",
+              points.size(), plan.axes.size(), plan.repeats, args.rig.c_str(),
+              dir.string().c_str());
+  for (const auto& p : points) std::printf("  %s  ok (within the rig's limits)\n", p.name.c_str());
+  std::fflush(stdout);
+  if (args.list) return;
+  // Not built yet: the per-point acquisition (step 2 + the actual Hall recording with an
+  // operator that never prompts, the reference's step 1 reused) through sweep::RunSweep.
+  throw std::runtime_error(
+      "sweep --rig: the points are within the rig's limits, but running a rig sweep is not "
+      "implemented yet (docs/lab-path.md, \"Rig sweeps\"); nothing was contacted");
+}
+
 void RunSweepCommand(const SweepArgs& args) {
   if (!args.resume.empty() && (!args.plan.empty() || !args.out.empty()))
     throw std::runtime_error("sweep: give either PLAN.yaml --out DIR or --resume DIR, not both");
@@ -138,6 +231,12 @@ void RunSweepCommand(const SweepArgs& args) {
     if (!fs::exists(plan_file))
       throw std::runtime_error(dir.string() + ": no sweep.yaml here: not a sweep folder");
   }
+  if (!args.rig.empty()) {
+    RunRigSweep(args, plan_file, dir);
+    return;
+  }
+  if (!args.reference.empty() || !args.operator_spec.empty())
+    throw std::runtime_error("sweep: --reference and --operator are for a rig sweep (--rig RIG)");
   const sweep::SweepPlan plan = sweep::LoadSweepPlan(plan_file, simulation::SimSweepParameters());
   const std::vector<sweep::SweepPoint> points = sweep::ExpandPoints(plan);
   std::printf("msmcal sweep: %zu points (%zu axes x %d repeats) into %s\n", points.size(),
@@ -241,6 +340,13 @@ void AddSweepCommands(CLI::App& app) {
                   "Address the mock GigE Vision camera serves on (port 3956)");
   cmd->add_option("--threads", args->threads, "Solver threads per point")->check(CLI::Range(1, 64));
   cmd->add_flag("--list", args->list, "List the points and their folder names, run nothing");
+  cmd->add_option("--rig", args->rig,
+                  "A rig sweep: the axes vary this rig file's fields (docs/lab-path.md, Rig "
+                  "sweeps); every point is checked against its limits first");
+  cmd->add_option("--reference", args->reference,
+                  "A rig sweep: the session folder whose step 1 every point reuses");
+  cmd->add_option("--operator", args->operator_spec,
+                  "A rig sweep: hook:CMD receives each point's truth request (nobody at the rig)");
   cmd->callback([args] { RunSweepCommand(*args); });
 }
 

@@ -1,0 +1,59 @@
+#!/usr/bin/env bash
+# Rig sweeps (issue 20, docs/lab-path.md "Rig sweeps"): every point of a rig sweep is checked
+# against the rig file's limits before anything starts. config/sweep-rig-example.yaml lists its 2
+# points within config/rig.yaml's limits; a sweep whose second point drives the fast coil outside
+# its frequency window, one whose amplitude exceeds max_vpp and one whose trigger density breaks
+# the duty limit are refused naming the point, the field, the value and the limit, with nothing
+# created and nothing contacted (the test runs in a network namespace where nothing listens).
+# The simulated sweep's options are refused for a rig sweep (an unknown rig file field).
+set -euo pipefail
+msmcal="$1"
+src="$2"
+dir=$(mktemp -d)
+trap 'rm -rf "$dir"' EXIT
+rig="$src/config/rig.yaml"
+
+"$msmcal" sweep "$src/config/sweep-rig-example.yaml" --rig "$rig" --out "$dir/ok" --list \
+  > "$dir/list.out"
+cat "$dir/list.out"
+grep -q "^msmcal sweep: 2 rig points (2 axes x 1 repeats)" "$dir/list.out"
+test "$(grep -c "ok (within the rig's limits)" "$dir/list.out")" -eq 2
+test ! -e "$dir/ok"
+
+refuse() {  # name, sweep text, patterns the message must contain...
+  local name="$1" text="$2"
+  shift 2
+  printf '%s\n' "$text" > "$dir/$name.yaml"
+  mkdir -p "$dir/ref"
+  if "$msmcal" sweep "$dir/$name.yaml" --rig "$rig" --reference "$dir/ref" --out "$dir/$name" \
+      > "$dir/$name.out" 2>&1; then
+    echo "FAIL: $name: expected a refusal"; cat "$dir/$name.out"; exit 1
+  fi
+  cat "$dir/$name.out"
+  for pattern in "$@"; do
+    grep -q -F -- "$pattern" "$dir/$name.out" || {
+      echo "FAIL: $name: no '$pattern' in the refusal"; exit 1; }
+  done
+  # The line of the resolved document would mislead: the message names the point instead.
+  if grep -q "with the point's values):[0-9]" "$dir/$name.out"; then
+    echo "FAIL: $name: a line number of the resolved rig file in the refusal"; exit 1
+  fi
+  test ! -e "$dir/$name"
+}
+# A reference that is no session folder is refused before the points (nothing runs without it).
+refuse noref 'axes: {generators.signals.drive.fast.frequency_hz: [205]}' \
+  "--reference" "no session.yaml"
+mkdir -p "$dir/ref/hall"
+: > "$dir/ref/session.yaml"; : > "$dir/ref/camera.yaml"; : > "$dir/ref/hall/background.csv"
+refuse window 'axes: {generators.signals.drive.fast.frequency_hz: [205, 230]}' \
+  "generators.signals.drive.fast.frequency_hz = 230" "frequency_hz = 230" "[195, 215]"
+refuse vpp 'axes: {generators.signals.drive.fast.amplitude_vpp: [2.0, 4.5]}' \
+  "generators.signals.drive.fast.amplitude_vpp = 4.5" "4.5" "4"
+refuse duty 'axes: {generators.signals.trigger.pulse_width_s: [1.0e-6, 1.0e-3]}' \
+  "generators.signals.trigger.pulse_width_s = 1.0e-3" "max_duty"
+refuse unknown 'axes: {mirror.fast.frequency_hz: [205]}' \
+  "mirror.fast.frequency_hz: unknown rig file field"
+# The simulated sweep is unchanged: no --rig, its own options.
+"$msmcal" sweep "$src/config/sweep-example.yaml" --out "$dir/sim" --list > "$dir/sim.out"
+grep -q "^msmcal sweep: 16 points" "$dir/sim.out" || { cat "$dir/sim.out"; exit 1; }
+echo PASS
