@@ -157,7 +157,11 @@ sim::SimOptions RowB5() {
   return o;
 }
 
-TEST(PipelineSimTest, DropsStep1FrameWithInconsistentBeamLabels) {
+// Issue 6's row B-5: step1/0004.png shows a stray blob where beam 3's dim dot is. It used to
+// mislabel beams 2 and 3 and tilt the beam lines by ~1 deg (then: the frame dropped by the label
+// check). The beams are now consensus lines over all poses, so the stray blob lies on none and
+// stays unlabelled, the frame's other dots are kept, and no frame is dropped.
+TEST(PipelineSimTest, LeavesAStrayStep1BlobOffEveryBeamLine) {
   PipelineOptions p;
   p.dots.max_saturated_fraction = 0.9;
   p.average_exposures = false;  // every frame measured on its own, as then
@@ -167,28 +171,20 @@ TEST(PipelineSimTest, DropsStep1FrameWithInconsistentBeamLabels) {
     std::printf("dropped %s: %s\n", d.file.c_str(), d.reason.c_str());
     if (d.reason.find("labels inconsistent") != std::string::npos) ++label_drops;
   }
-  for (const auto& n : r.out.notes) std::printf("note: %s\n", n.c_str());
-  EXPECT_EQ(label_drops, 1);
+  bool consensus_noted = false;
+  for (const auto& n : r.out.notes) {
+    std::printf("note: %s\n", n.c_str());
+    consensus_noted =
+        consensus_noted || n.find("consensus lines over 7 poses (23 of 24") != std::string::npos;
+  }
+  EXPECT_EQ(label_drops, 0);
+  EXPECT_TRUE(consensus_noted) << "one listed beam's dot (the stray blob's frame) unlabelled";
   ASSERT_EQ(r.out.beams.size(), r.sim->beams_in_world().size());
   for (const auto& b : r.out.beams) {
     const auto& truth = r.sim->beams_in_world()[b.beam - 1];
     EXPECT_LT(geometry::AngleBetween(b.v, truth.v) * kRadToDeg, 0.03) << "beam " << b.beam;
   }
-  // step2/0005.png (3 triggers) loses the saturated held-out dot of trigger 2: its two complete
-  // triggers are grouped, trigger 2's plane comes from its two estimate dots (elimination,
-  // checked by the drive-phase model), so every trigger gets its plane.
   EXPECT_EQ(r.out.planes.size(), r.sim->triggers().size());
-  const std::string partial =
-      "step2/0005.png: 8 of 9 laser dots found; 2 of 3 trigger(s) grouped and kept";
-  const std::string recovered = "step2/0005.png: trigger 2 (its held-out dot missing)";
-  bool partial_noted = false, recovered_noted = false;
-  for (const auto& n : r.out.notes) {
-    partial_noted = partial_noted || n == partial;
-    recovered_noted =
-        recovered_noted || (n.rfind(recovered, 0) == 0 && n.find(": kept") != std::string::npos);
-  }
-  EXPECT_TRUE(partial_noted);
-  EXPECT_TRUE(recovered_noted);
   EXPECT_LT(r.out.rms_validation_deg, 0.042);
 }
 
