@@ -119,9 +119,10 @@ TEST(HookOperator, AFailingHookAbortsWithTheSafeState) {
   bool outputs_were_on = false;
   try {
     RunSession(options, plan, op, [&](const std::string& line) {
+      // Step 1 (MSM not mounted): the laser and the clock on, the drives off.
       if (line.find("step 1: frame 1/") != std::string::npos)
         outputs_were_on =
-            rig.generators().unit(1).AnyOutputOn() && rig.generators().unit(2).AnyOutputOn();
+            !rig.generators().unit(1).AnyOutputOn() && rig.generators().unit(2).AnyOutputOn();
     });
     FAIL() << "expected the hook's failure to abort the session";
   } catch (const HookFailed& e) {
