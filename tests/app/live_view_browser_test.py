@@ -242,8 +242,11 @@ def run(msmcal, out_dir, mode):
             if mode == "abort" and text(driver, "counters").startswith("Step 2, frame"):
                 step2_seen = True
                 driver.find_element(By.ID, "abort").click()
+                # The page shows `aborted` while msmcal still serves it; msmcal may also end
+                # first (the abort's outcome is then checked from its files below).
                 wait(driver, "state aborted", END_DEADLINE_S,
-                     lambda d: text(d, "state") == "aborted", child, out_dir)
+                     lambda d: text(d, "state") == "aborted" or child.proc.poll() is not None,
+                     child, out_dir)
                 break
             if mode == "complete" and prompts == 2 and not repeated:
                 driver.find_element(By.ID, "repeat").click()
@@ -295,8 +298,10 @@ def run(msmcal, out_dir, mode):
         else:
             if not step2_seen:
                 fail("no step-2 instruction reached", child, driver, out_dir)
-            wait(driver, "outputs off after the abort", 60,
-                 lambda d: text(d, "outputs") == "generator outputs off", child, out_dir)
+            if child.proc.poll() is None:
+                wait(driver, "outputs off after the abort", 60,
+                     lambda d: text(d, "outputs") == "generator outputs off" or
+                     child.proc.poll() is not None, child, out_dir)
             status = child.finish(END_DEADLINE_S)
             if status is None or status == 0:
                 fail("aborted session: exit status %r" % status, child)
