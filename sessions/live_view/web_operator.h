@@ -25,6 +25,7 @@
 #include "processing/dataset/recording.h"
 #include "sessions/live_view/live_view.h"
 #include "sessions/orchestrator/rig_operator.h"
+#include "sessions/orchestrator/setup_operator.h"
 #include "sessions/setup/setup.h"
 
 namespace msmcal::live_view {
@@ -43,41 +44,23 @@ struct WebOperatorOptions {
   std::string Validate(bool has_inner) const;  // empty when valid; names field and constraint
 };
 
-class WebOperator : public orchestrator::RigOperator {
+class WebOperator : public orchestrator::SetupOperator {
  public:
   // `plan`, `view` and `inner` (may be null: lab) must outlive the operator. Throws
   // std::invalid_argument when options.Validate(inner != nullptr) fails.
   WebOperator(const dataset::Recording& plan, LiveView& view, WebOperatorOptions options,
               orchestrator::RigOperator* inner);
 
-  void PrepareStep1Frame(size_t index) override;
-  void PrepareStep2Frame(size_t index) override;
   // Throws OperatorAbort when the page asked for an abort meanwhile.
   bool FrameShowsCurrentSetup(const camera::FrameInfo& info) const override;
-  std::string PrepareHallRecording(orchestrator::HallRun run) override;
-
-  int confirmations() const { return confirmations_; }
-  int total_steps() const { return total_; }
 
  private:
-  // Shows the block until Ready; throws OperatorAbort on Abort.
-  void Ask(const std::string& instructions, int number, int step, size_t index);
-  void SeeFirstCall(bool is_background);
-  // Asks for setups_.setups[k] unless it is the set-up confirmed last.
-  void Enter(int k);
+  // Shows the set-up's block until Ready; throws OperatorAbort on Abort.
+  void Present(const setup::Setup& s) override;
   void Echo(const std::string& text) const;
 
-  const dataset::Recording& plan_;
   LiveView& view_;
   WebOperatorOptions options_;
-  orchestrator::RigOperator* inner_;
-  int total_ = 0;
-  int confirmations_ = 0;
-  bool order_known_ = false;
-  bool background_first_ = false;
-  int64_t confirmed_ns_ = 0;
-  setup::SetupPlan setups_;
-  int current_ = -1;  // the set-up confirmed last
 };
 
 // The exception messages (what session_log.txt records).

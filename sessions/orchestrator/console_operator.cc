@@ -30,14 +30,19 @@ std::string ConsoleOperatorOptions::Validate(bool has_inner) const {
   return {};
 }
 
+namespace {
+
+// What the set-up walk needs of the console's options (validated first).
+SetupWalkOptions WalkOf(const ConsoleOperatorOptions& o, bool has_inner) {
+  if (std::string e = o.Validate(has_inner); !e.empty()) throw std::invalid_argument(e);
+  return {o.poses, o.mcu_device, o.host_clock_ns, o.settle_ns};
+}
+
+}  // namespace
+
 ConsoleOperator::ConsoleOperator(const dataset::Recording& plan, ConsoleOperatorOptions options,
                                  RigOperator* inner)
-    : plan_(plan), options_(std::move(options)), inner_(inner) {
-  if (std::string e = options_.Validate(inner_ != nullptr); !e.empty())
-    throw std::invalid_argument(e);
-  setups_ = setup::PlanSetups(plan_, options_.poses, /*background_first=*/false);
-  total_ = static_cast<int>(setups_.setups.size());
-}
+    : SetupOperator(plan, WalkOf(options, inner != nullptr), inner), options_(std::move(options)) {}
 
 void ConsoleOperator::Write(const std::string& text) const {
   size_t done = 0;
@@ -68,7 +73,8 @@ bool ConsoleOperator::ReadLine(std::string* line) {
   }
 }
 
-void ConsoleOperator::Ask(const std::string& instructions) {
+void ConsoleOperator::Present(const setup::Setup& s) {
+  const std::string& instructions = s.text;
   Write(instructions);
   for (;;) {
     Write(kConsolePrompt);
@@ -89,53 +95,7 @@ void ConsoleOperator::Ask(const std::string& instructions) {
       throw OperatorAbort("guided mode: operator aborted the session at a prompt");
     Write("unknown answer '" + line + "'\n");
   }
-  ++confirmations_;
   Write("ok.\n");
-}
-
-void ConsoleOperator::SeeFirstCall(bool is_background) {
-  if (order_known_) return;
-  order_known_ = true;
-  background_first_ = is_background;
-  if (background_first_) setups_ = setup::PlanSetups(plan_, options_.poses, true);
-}
-
-void ConsoleOperator::Enter(int k) {
-  if (k == current_) return;
-  Ask(setups_.setups.at(static_cast<size_t>(k)).text);
-  current_ = k;
-}
-
-void ConsoleOperator::PrepareStep1Frame(size_t index) {
-  SeeFirstCall(false);
-  Enter(setups_.step1_setup.at(index));
-  if (inner_)
-    inner_->PrepareStep1Frame(index);
-  else
-    confirmed_ns_ = options_.host_clock_ns();
-}
-
-void ConsoleOperator::PrepareStep2Frame(size_t index) {
-  SeeFirstCall(false);
-  Enter(setups_.step2_setup.at(index));
-  if (inner_)
-    inner_->PrepareStep2Frame(index);
-  else
-    confirmed_ns_ = options_.host_clock_ns();
-}
-
-bool ConsoleOperator::FrameShowsCurrentSetup(const camera::FrameInfo& info) const {
-  if (inner_) return inner_->FrameShowsCurrentSetup(info);
-  return info.host_timestamp_ns - confirmed_ns_ >= options_.settle_ns;
-}
-
-std::string ConsoleOperator::PrepareHallRecording(HallRun run) {
-  SeeFirstCall(run == HallRun::kBackground);
-  current_ = -1;  // a Hall set-up is always asked for (its recording starts on the answer)
-  Enter(run == HallRun::kBackground ? setups_.background_setup : setups_.actual_setup);
-  if (inner_) return inner_->PrepareHallRecording(run);
-  confirmed_ns_ = options_.host_clock_ns();
-  return options_.mcu_device;
 }
 
 std::string FormatLiveFigures(const FrameReport& report, const LiveTotals& totals) {

@@ -40,6 +40,7 @@
 #include "processing/dataset/recording.h"
 #include "sessions/orchestrator/orchestrator.h"
 #include "sessions/orchestrator/rig_operator.h"
+#include "sessions/orchestrator/setup_operator.h"
 #include "sessions/setup/setup.h"
 
 namespace msmcal::orchestrator {
@@ -79,45 +80,21 @@ struct ConsoleOperatorOptions {
 inline constexpr const char* kConsolePrompt =
     "[Enter] ready  [r] repeat instructions  [q] abort > ";
 
-class ConsoleOperator : public RigOperator {
+class ConsoleOperator : public SetupOperator {
  public:
   // `plan` and `inner` (may be null: lab) must outlive the operator. Throws std::invalid_argument
   // when options.Validate(inner != nullptr) fails.
   ConsoleOperator(const dataset::Recording& plan, ConsoleOperatorOptions options,
                   RigOperator* inner);
 
-  void PrepareStep1Frame(size_t index) override;
-  void PrepareStep2Frame(size_t index) override;
-  // With an inner operator: its answer. Lab: host arrival time >= confirmation + settle_ns.
-  bool FrameShowsCurrentSetup(const camera::FrameInfo& info) const override;
-  std::string PrepareHallRecording(HallRun run) override;
-
-  int confirmations() const { return confirmations_; }  // setups confirmed so far
-  int total_steps() const { return total_; }            // instruction blocks in the plan
-  // The plan's set-ups in the order decided by the first call (background first or not).
-  const setup::SetupPlan& setups() const { return setups_; }
-
  private:
-  // Prints `instructions` and the prompt until the operator confirms; throws OperatorAbort.
-  void Ask(const std::string& instructions);
+  // Prints the set-up's block and the prompt until the operator confirms; throws OperatorAbort.
+  void Present(const setup::Setup& s) override;
   void Write(const std::string& text) const;
-  // Decides the numbering on the first call (background asked first or after step 1).
-  void SeeFirstCall(bool is_background);
-  // Prompts for setups_.setups[k] unless it is the set-up confirmed last.
-  void Enter(int k);
   // One line from the input without the newline; false at EOF.
   bool ReadLine(std::string* line);
 
-  const dataset::Recording& plan_;
   ConsoleOperatorOptions options_;
-  RigOperator* inner_;
-  int total_ = 0;
-  int confirmations_ = 0;
-  bool order_known_ = false;
-  bool background_first_ = false;
-  int64_t confirmed_ns_ = 0;
-  setup::SetupPlan setups_;
-  int current_ = -1;     // the set-up confirmed last (index into setups_.setups)
   std::string pending_;  // bytes read past the last line
 };
 

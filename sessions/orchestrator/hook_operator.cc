@@ -133,19 +133,18 @@ std::string HookOperatorOptions::Validate(bool has_inner) const {
   return {};
 }
 
-HookOperator::HookOperator(const dataset::Recording& plan, HookOperatorOptions options,
-                           RigOperator* inner)
-    : plan_(plan), options_(std::move(options)), inner_(inner) {
-  if (std::string e = options_.Validate(inner_ != nullptr); !e.empty())
-    throw std::invalid_argument(e);
-  setups_ = setup::PlanSetups(plan_, options_.poses, /*background_first=*/false);
+namespace {
+
+SetupWalkOptions WalkOf(const HookOperatorOptions& o, bool has_inner) {
+  if (std::string e = o.Validate(has_inner); !e.empty()) throw std::invalid_argument(e);
+  return {o.poses, o.mcu_device, o.host_clock_ns, o.settle_ns};
 }
 
-void HookOperator::SeeFirstCall(bool is_background) {
-  if (order_known_) return;
-  order_known_ = true;
-  if (is_background) setups_ = setup::PlanSetups(plan_, options_.poses, true);
-}
+}  // namespace
+
+HookOperator::HookOperator(const dataset::Recording& plan, HookOperatorOptions options,
+                           RigOperator* inner)
+    : SetupOperator(plan, WalkOf(options, inner != nullptr), inner), options_(std::move(options)) {}
 
 void HookOperator::Run(const std::string& json, const std::string& what) {
   const int status = RunHookCommand(options_.command, json + "\n", options_.timeout_ms);
@@ -158,44 +157,9 @@ void HookOperator::Run(const std::string& json, const std::string& what) {
   ++calls_;
 }
 
-void HookOperator::Enter(int k) {
-  if (k == current_) return;
-  const setup::Setup& s = setups_.setups.at(static_cast<size_t>(k));
+void HookOperator::Present(const setup::Setup& s) {
   Run(setup::SetupToJson(s), "set-up " + std::to_string(s.block) + "/" + std::to_string(s.of) +
                                  " (" + setup::ToString(s.step) + ")");
-  current_ = k;
-}
-
-void HookOperator::PrepareStep1Frame(size_t index) {
-  SeeFirstCall(false);
-  Enter(setups_.step1_setup.at(index));
-  if (inner_)
-    inner_->PrepareStep1Frame(index);
-  else
-    confirmed_ns_ = options_.host_clock_ns();
-}
-
-void HookOperator::PrepareStep2Frame(size_t index) {
-  SeeFirstCall(false);
-  Enter(setups_.step2_setup.at(index));
-  if (inner_)
-    inner_->PrepareStep2Frame(index);
-  else
-    confirmed_ns_ = options_.host_clock_ns();
-}
-
-bool HookOperator::FrameShowsCurrentSetup(const camera::FrameInfo& info) const {
-  if (inner_) return inner_->FrameShowsCurrentSetup(info);
-  return info.host_timestamp_ns - confirmed_ns_ >= options_.settle_ns;
-}
-
-std::string HookOperator::PrepareHallRecording(HallRun run) {
-  SeeFirstCall(run == HallRun::kBackground);
-  current_ = -1;
-  Enter(run == HallRun::kBackground ? setups_.background_setup : setups_.actual_setup);
-  if (inner_) return inner_->PrepareHallRecording(run);
-  confirmed_ns_ = options_.host_clock_ns();
-  return options_.mcu_device;
 }
 
 void HookOperator::RequestTruth(const std::filesystem::path& dir) {

@@ -29,6 +29,7 @@
 
 #include "processing/dataset/recording.h"
 #include "sessions/orchestrator/rig_operator.h"
+#include "sessions/orchestrator/setup_operator.h"
 #include "sessions/setup/setup.h"
 
 namespace msmcal::orchestrator {
@@ -58,35 +59,24 @@ int RunHookCommand(const std::string& command, const std::string& input, int tim
 // "exit status 1" / "killed by signal 9 (Killed)".
 std::string DescribeWaitStatus(int status);
 
-class HookOperator : public RigOperator {
+class HookOperator : public SetupOperator {
  public:
   // `plan` and `inner` (may be null: lab) must outlive the operator. Throws std::invalid_argument
   // when options.Validate(inner != nullptr) fails.
   HookOperator(const dataset::Recording& plan, HookOperatorOptions options, RigOperator* inner);
 
-  void PrepareStep1Frame(size_t index) override;
-  void PrepareStep2Frame(size_t index) override;
-  bool FrameShowsCurrentSetup(const camera::FrameInfo& info) const override;
-  std::string PrepareHallRecording(HallRun run) override;
   // Sends the truth request for `dir`; throws HookFailed as a set-up does.
   void RequestTruth(const std::filesystem::path& dir);
 
   int calls() const { return calls_; }  // hook runs that exited 0
-  const setup::SetupPlan& setups() const { return setups_; }
 
  private:
-  void SeeFirstCall(bool is_background);
-  void Enter(int k);
+  // Runs the hook with the set-up's JSON; throws HookFailed.
+  void Present(const setup::Setup& s) override;
   void Run(const std::string& json, const std::string& what);
 
-  const dataset::Recording& plan_;
   HookOperatorOptions options_;
-  RigOperator* inner_;
-  setup::SetupPlan setups_;
-  bool order_known_ = false;
-  int current_ = -1;
   int calls_ = 0;
-  int64_t confirmed_ns_ = 0;
 };
 
 }  // namespace msmcal::orchestrator
