@@ -20,12 +20,15 @@
 #include <vector>
 
 #include "app/command_registry.h"
+#include "app/stop_signal.h"
 #include "drivers/generator/rig_generators.h"
 #include "drivers/generator/safe_state.h"
 #include "drivers/generator/watchdog.h"
 #include "mocks/generator/mock_server.h"
 
 namespace {
+
+using msmcal::app::StopSignal;
 
 using msmcal::gen::FunctionGenerator;
 using msmcal::gen::RigGeneratorConfig;
@@ -44,25 +47,6 @@ struct GenArgs {
   std::string triggers_out;
   std::string transcript;
   std::string watchdog_log;
-};
-
-// Blocks SIGINT/SIGTERM in this thread (and the threads it starts), then waits for one.
-class StopSignal {
- public:
-  StopSignal() {
-    sigemptyset(&set_);
-    sigaddset(&set_, SIGINT);
-    sigaddset(&set_, SIGTERM);
-    pthread_sigmask(SIG_BLOCK, &set_, nullptr);
-  }
-  int Wait() {
-    int signo = 0;
-    sigwait(&set_, &signo);
-    return signo;
-  }
-
- private:
-  sigset_t set_;
 };
 
 void Identify(const GenArgs& args) {

@@ -21,12 +21,15 @@
 #include <string>
 
 #include "app/command_registry.h"
+#include "app/stop_signal.h"
 #include "mocks/rig/sim_options.h"
 #include "simulation/twin/hands_protocol.h"
 #include "simulation/twin/physical_twin.h"
 #include "simulation/twin/twin_rig_config.h"
 
 namespace {
+
+using msmcal::app::StopSignal;
 
 namespace fs = std::filesystem;
 namespace twin = msmcal::twin;
@@ -44,25 +47,6 @@ struct HandsArgs {
   std::string socket;
   std::string truth_out;
   int timeout_ms = 30000;
-};
-
-// Blocks SIGINT/SIGTERM in this thread and the threads started after it, then waits for one.
-class StopSignal {
- public:
-  StopSignal() {
-    sigemptyset(&set_);
-    sigaddset(&set_, SIGINT);
-    sigaddset(&set_, SIGTERM);
-    pthread_sigmask(SIG_BLOCK, &set_, nullptr);
-  }
-  int Wait() {
-    int signo = 0;
-    sigwait(&set_, &signo);
-    return signo;
-  }
-
- private:
-  sigset_t set_;
 };
 
 void ServeRig(const RigArgs& args) {
