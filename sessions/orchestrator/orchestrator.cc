@@ -64,33 +64,32 @@ std::string JoinLines(const std::vector<std::string>& lines) {
 }
 
 // Appends to session_log.txt (flushed per line) and echoes to the progress callback. Callable
-// from the safe-state watcher thread.
+// from the safe-state watcher thread. Times are the injected clock's.
 class SessionLog {
  public:
-  SessionLog(const fs::path& file, ProgressFn progress, store::SessionStore* journal)
-      : progress_(std::move(progress)),
-        journal_(journal),
-        start_(std::chrono::steady_clock::now()) {
+  SessionLog(const fs::path& file, ProgressFn progress, store::SessionStore* journal,
+             const store::Clock& clock)
+      : progress_(std::move(progress)), journal_(journal), clock_(clock), start_ns_(clock.NowNs()) {
     file_ = std::fopen(file.string().c_str(), "a");
     if (!file_) throw std::runtime_error(file.string() + ": cannot open the session log");
   }
   ~SessionLog() {
     if (file_) std::fclose(file_);
   }
-  // Generator time: seconds since the generators' start trigger (*TRG to unit 1), on the host's
-  // steady clock, so to within the LAN latency; none while the outputs are off.
-  void SetGeneratorEpoch(std::optional<std::chrono::steady_clock::time_point> epoch) {
+  SessionLog(const SessionLog&) = delete;
+  SessionLog& operator=(const SessionLog&) = delete;
+  // Generator time: seconds since the generators' start trigger (*TRG to unit 1), on the
+  // session's clock, so to within the LAN latency; none while the outputs are off.
+  void SetGeneratorEpoch(std::optional<int64_t> epoch_ns) {
     std::lock_guard<std::mutex> lock(mu_);
-    generator_epoch_ = epoch;
+    generator_epoch_ns_ = epoch_ns;
   }
   void Line(const std::string& text, const char* kind = "info") {
+    const int64_t now_ns = clock_.NowNs();
     std::optional<double> generator_time_s;
     {
       std::lock_guard<std::mutex> lock(mu_);
-      if (generator_epoch_)
-        generator_time_s =
-            std::chrono::duration<double>(std::chrono::steady_clock::now() - *generator_epoch_)
-                .count();
+      if (generator_epoch_ns_) generator_time_s = 1e-9 * double(now_ns - *generator_epoch_ns_);
     }
     if (journal_) {
       try {
@@ -103,9 +102,7 @@ class SessionLog {
     }
     {
       std::lock_guard<std::mutex> lock(mu_);
-      const double t =
-          std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
-      std::fprintf(file_, "[%8.3f s] %s\n", t, text.c_str());
+      std::fprintf(file_, "[%8.3f s] %s\n", 1e-9 * double(now_ns - start_ns_), text.c_str());
       std::fflush(file_);
     }
     // Outside the lock: the safe-state watcher may log while the callback runs.
@@ -117,8 +114,9 @@ class SessionLog {
   std::FILE* file_ = nullptr;
   ProgressFn progress_;
   store::SessionStore* journal_;
-  std::chrono::steady_clock::time_point start_;
-  std::optional<std::chrono::steady_clock::time_point> generator_epoch_;
+  const store::Clock& clock_;
+  const int64_t start_ns_;
+  std::optional<int64_t> generator_epoch_ns_;
 };
 
 // generators_transcript.txt: one line per SCPI exchange ("unit1 > *RST", "unit1 < 1"), without
@@ -679,172 +677,183 @@ dataset::Recording LoadSessionPlan(const fs::path& dir) {
   return plan;
 }
 
-SessionResult RunSession(const OrchestratorOptions& options, const dataset::Recording& plan,
-                         RigOperator& rig_operator, const ProgressFn& progress) {
-  if (std::string e = options.Validate(); !e.empty()) throw std::invalid_argument(e);
-  const fs::path out = options.out_dir;
-  const store::SystemClock system_clock;
-  const store::Clock& clock = options.clock ? *options.clock : system_clock;
-  const std::string plan_yaml = interchange::FormatSessionYaml(plan);
-  std::unique_ptr<store::SessionStore> journal;
-  // Frames in the journal (recorded before a resume or in this run), by plan file: true when
-  // accepted. Each plan file is looked up once, before it is acquired.
-  std::map<std::string, bool> recorded;
-  if (options.resume) {
-    if (!fs::exists(out / store::kSessionDbName))
-      throw std::runtime_error(out.string() + ": no session journal (" + store::kSessionDbName +
-                               ") to resume");
-    journal = store::SessionStore::Open(out, clock);
-    if (journal->GetMeta(kPlanSessionYamlKey).value_or("") != plan_yaml ||
-        journal->GetMeta(kPlanCameraYamlKey).value_or("") !=
-            interchange::FormatCameraYaml(plan.camera))
-      throw std::runtime_error(out.string() +
-                               ": the plan given differs from the plan this session was started "
-                               "with (LoadSessionPlan gives the stored one)");
-    for (const auto& f : journal->Frames()) {
-      // Rejected frames are kept under rejected/; quality_json names the plan's file.
-      const auto q = nlohmann::json::parse(f.quality_json, nullptr, false);
-      std::string plan_file = f.file;
-      if (q.is_object() && q.contains("plan_file")) plan_file = q["plan_file"].get<std::string>();
-      recorded[plan_file] = f.accepted;
+namespace {
+
+// The session as a controller (issue 16): RunSession's steps as named methods that read top to
+// bottom in Run(): open the journal, check the rig, arm the safe state, start the signals,
+// step 1, the background Hall recording, step 2 with the actual Hall recording, write the
+// session. The threads live apart from the run logic: the camera's live pump (LivePump), the
+// Hall recorder and its status reporter (RecordHall), the safe-state watcher (SafeStateGuard),
+// the watchdog (a process). Every fact is a typed SessionEvent to options.on_event, its text a
+// line of session_log.txt; time is the injected clock's (options.clock).
+class SessionController {
+ public:
+  SessionController(const OrchestratorOptions& options, const dataset::Recording& plan,
+                    RigOperator& rig_operator, const ProgressFn& progress)
+      : options_(options),
+        plan_(plan),
+        operator_(rig_operator),
+        progress_(progress),
+        out_(options.out_dir),
+        clock_(options.clock ? *options.clock : system_clock_) {}
+
+  SessionResult Run() {
+    OpenJournal();
+    if (AlreadyComplete()) return result_;
+    CheckTheRig();
+    ArmTheSafeState();
+    try {
+      StartTheSignals();
+      Step1();
+      BackgroundHallRecording();
+      Step2WithTheActualHallRecording();
+      inst_.cam->Stop();
+    } catch (const std::exception& e) {
+      log_->Line(std::string("ERROR: ") + e.what(), "error");
+      if (inst_.cam) inst_.cam->Stop();
+      SafeState();
+      guard_->Disarm();  // outputs are off already
+      throw;
     }
-  } else {
-    if (fs::exists(out) && !fs::is_empty(out))
-      throw std::runtime_error(out.string() + ": session folder exists and is not empty");
-    store::SessionMetadata meta;
-    meta.rig_id = options.rig_id;
-    meta.mirror_id = options.mirror_id;
-    meta.note = options.note;
-    meta.description = plan;
-    meta.config_yaml = options.run_config_yaml;
-    journal = store::SessionStore::Create(out, meta, clock);
-    journal->SetMeta(kRunKindKey, options.run_kind);
-    journal->SetMeta(kPlanSessionYamlKey, plan_yaml);
-    journal->SetMeta(kPlanCameraYamlKey, interchange::FormatCameraYaml(plan.camera));
-    journal->SetTriggers(plan.triggers);
-    for (const char* step : {kStepRigCheck, kStep1, kStepBackground, kStep2, kStepSessionWritten})
-      journal->SetStep(step, store::StepState::kPending);
-  }
-  fs::create_directories(out / "step1");
-  fs::create_directories(out / "step2");
-  fs::create_directories(out / "hall");
-  SessionLog log(out / "session_log.txt", progress, journal.get());
-  // One typed event per fact (its log line as `text`); steps change state through set_step.
-  auto emit = [&](SessionEvent e) {
-    if (options.on_event) options.on_event(e);
-  };
-  auto set_step = [&](const char* name, store::StepState state) {
-    journal->SetStep(name, state);
-    SessionEvent e;
-    e.kind = SessionEvent::Kind::kStepState;
-    e.step_name = name;
-    e.state = store::ToString(state);
-    e.text = std::string("step ") + name + ": " + e.state;
-    emit(e);
-  };
-  TranscriptFile transcript(out / "generators_transcript.txt");
-  transcript.OnStartTrigger([&log] { log.SetGeneratorEpoch(std::chrono::steady_clock::now()); });
-  SessionResult result;
-  result.folder = out;
-  result.resumed = options.resume;
-  if (options.resume) {
-    transcript.Comment("resumed");
-    log.Line("session " + out.string() + " RESUMED: " + std::to_string(recorded.size()) +
-             " frames already recorded are kept");
-    if (StepDone(*journal, kStepSessionWritten)) {
-      for (const auto& f : plan.step1)
-        result.frames.push_back({f.file, recorded.count(f.file) && recorded[f.file], "", true});
-      for (const auto& f : plan.step2)
-        result.frames.push_back({f.file, recorded.count(f.file) && recorded[f.file], "", true});
-      result.safe_state_confirmed = true;
-      log.Line("session already complete (session.yaml written): nothing to acquire");
-      return result;
-    }
-  } else {
-    log.Line("session " + out.string() + ": " + std::to_string(plan.step1.size()) +
-             " step-1 frames, " + std::to_string(plan.step2.size()) + " step-2 frames, " +
-             std::to_string(plan.triggers.size()) + " triggers");
+    SafeState();
+    guard_->Disarm();
+    WriteTheSession();
+    return result_;
   }
 
-  // Rig check. The MCU is checked on options.mcu.device when given (then the operator sets up the
-  // background recording when it is due); otherwise the operator's background device is asked
-  // for now.
-  set_step(kStepRigCheck, store::StepState::kRunning);
-  OpenInstruments inst;
-  std::string background_device = options.mcu.device;
-  const bool ask_background_later = !background_device.empty();
-  if (!ask_background_later) {
-    try {
-      background_device = rig_operator.PrepareHallRecording(HallRun::kBackground);
-    } catch (const std::exception& e) {
-      result.rig_check.problems.push_back(std::string("Hall MCU: ") + e.what());
+ private:
+  // --- The steps -------------------------------------------------------------------------------
+
+  // Creates the session's journal, or opens it to resume (the plan must be the one it was started
+  // with); the folders, the session log and the SCPI transcript.
+  void OpenJournal() {
+    const std::string plan_yaml = interchange::FormatSessionYaml(plan_);
+    if (options_.resume) {
+      if (!fs::exists(out_ / store::kSessionDbName))
+        throw std::runtime_error(out_.string() + ": no session journal (" + store::kSessionDbName +
+                                 ") to resume");
+      journal_ = store::SessionStore::Open(out_, clock_);
+      if (journal_->GetMeta(kPlanSessionYamlKey).value_or("") != plan_yaml ||
+          journal_->GetMeta(kPlanCameraYamlKey).value_or("") !=
+              interchange::FormatCameraYaml(plan_.camera))
+        throw std::runtime_error(out_.string() +
+                                 ": the plan given differs from the plan this session was "
+                                 "started with (LoadSessionPlan gives the stored one)");
+      for (const auto& f : journal_->Frames()) {
+        // Rejected frames are kept under rejected/; quality_json names the plan's file.
+        const auto q = nlohmann::json::parse(f.quality_json, nullptr, false);
+        std::string plan_file = f.file;
+        if (q.is_object() && q.contains("plan_file")) plan_file = q["plan_file"].get<std::string>();
+        recorded_[plan_file] = f.accepted;
+      }
+    } else {
+      if (fs::exists(out_) && !fs::is_empty(out_))
+        throw std::runtime_error(out_.string() + ": session folder exists and is not empty");
+      store::SessionMetadata meta;
+      meta.rig_id = options_.rig_id;
+      meta.mirror_id = options_.mirror_id;
+      meta.note = options_.note;
+      meta.description = plan_;
+      meta.config_yaml = options_.run_config_yaml;
+      journal_ = store::SessionStore::Create(out_, meta, clock_);
+      journal_->SetMeta(kRunKindKey, options_.run_kind);
+      journal_->SetMeta(kPlanSessionYamlKey, plan_yaml);
+      journal_->SetMeta(kPlanCameraYamlKey, interchange::FormatCameraYaml(plan_.camera));
+      journal_->SetTriggers(plan_.triggers);
+      for (const char* step : {kStepRigCheck, kStep1, kStepBackground, kStep2, kStepSessionWritten})
+        journal_->SetStep(step, store::StepState::kPending);
     }
+    fs::create_directories(out_ / "step1");
+    fs::create_directories(out_ / "step2");
+    fs::create_directories(out_ / "hall");
+    log_ =
+        std::make_unique<SessionLog>(out_ / "session_log.txt", progress_, journal_.get(), clock_);
+    transcript_ = std::make_unique<TranscriptFile>(out_ / "generators_transcript.txt");
+    transcript_->OnStartTrigger([this] { log_->SetGeneratorEpoch(clock_.NowNs()); });
+    result_.folder = out_;
+    result_.resumed = options_.resume;
   }
-  if (result.rig_check.problems.empty())
-    result.rig_check = CheckRig(options, &plan, background_device, &inst, &transcript);
-  for (const auto& f : result.rig_check.found) log.Line("rig check: " + f);
-  for (const auto& [role, identity] : result.rig_check.instruments)
-    journal->SetInstrument(role, identity);
-  if (!result.rig_check.ok) {
-    for (const auto& p : result.rig_check.problems) log.Line("rig check PROBLEM: " + p, "error");
-    if (inst.master) inst.master->SafeState();
-    if (inst.slave) inst.slave->SafeState();
-    log.Line("refused to start; generator outputs off", "error");
-    throw RigCheckError(result.rig_check);
+
+  // On a resume of a session whose session.yaml is written: nothing to acquire.
+  bool AlreadyComplete() {
+    if (!options_.resume) {
+      log_->Line("session " + out_.string() + ": " + std::to_string(plan_.step1.size()) +
+                 " step-1 frames, " + std::to_string(plan_.step2.size()) + " step-2 frames, " +
+                 std::to_string(plan_.triggers.size()) + " triggers");
+      return false;
+    }
+    transcript_->Comment("resumed");
+    log_->Line("session " + out_.string() + " RESUMED: " + std::to_string(recorded_.size()) +
+               " frames already recorded are kept");
+    if (!StepDone(*journal_, kStepSessionWritten)) return false;
+    for (const auto& f : plan_.step1)
+      result_.frames.push_back({f.file, Accepted(f.file), "", true});
+    for (const auto& f : plan_.step2)
+      result_.frames.push_back({f.file, Accepted(f.file), "", true});
+    result_.safe_state_confirmed = true;
+    log_->Line("session already complete (session.yaml written): nothing to acquire");
+    return true;
   }
-  set_step(kStepRigCheck, store::StepState::kDone);
-  log.Line("rig check passed");
+
+  // The rig check. The MCU is checked on options.mcu.device when given (then the operator sets
+  // up the background recording when it is due); otherwise the operator's background device is
+  // asked for now. A failed check ends with the outputs off and a RigCheckError.
+  void CheckTheRig() {
+    SetStep(kStepRigCheck, store::StepState::kRunning);
+    background_device_ = options_.mcu.device;
+    ask_background_later_ = !background_device_.empty();
+    if (!ask_background_later_) {
+      try {
+        background_device_ = operator_.PrepareHallRecording(HallRun::kBackground);
+      } catch (const std::exception& e) {
+        result_.rig_check.problems.push_back(std::string("Hall MCU: ") + e.what());
+      }
+    }
+    if (result_.rig_check.problems.empty())
+      result_.rig_check = CheckRig(options_, &plan_, background_device_, &inst_, transcript_.get());
+    for (const auto& f : result_.rig_check.found) log_->Line("rig check: " + f);
+    for (const auto& [role, identity] : result_.rig_check.instruments)
+      journal_->SetInstrument(role, identity);
+    if (!result_.rig_check.ok) {
+      for (const auto& p : result_.rig_check.problems)
+        log_->Line("rig check PROBLEM: " + p, "error");
+      if (inst_.master) inst_.master->SafeState();
+      if (inst_.slave) inst_.slave->SafeState();
+      log_->Line("refused to start; generator outputs off", "error");
+      throw RigCheckError(result_.rig_check);
+    }
+    SetStep(kStepRigCheck, store::StepState::kDone);
+    log_->Line("rig check passed");
+  }
 
   // From here on outputs may be on: safe state on signal, exception and exit; the watchdog for
-  // SIGKILL and crashes, stood down once the outputs are confirmed off.
-  gen::RigGenerators rig(*inst.master, *inst.slave);
-  std::unique_ptr<gen::Watchdog> watchdog;
-  if (options.watchdog.enabled()) {
-    watchdog = gen::Watchdog::Start(
-        options.watchdog,
-        gen::WatchdogConfigFor(options.generators, (out / "session_log.txt").string()));
-    log.Line("watchdog armed (pid " + std::to_string(watchdog->pid()) + ")");
-  }
-  auto report_rig = [&](bool outputs_on) {
-    if (!options.on_rig_status) return;
-    RigStatus st;
-    st.outputs_on = outputs_on;
-    st.reference_locked = outputs_on;
-    try {
-      options.on_rig_status(st);
-    } catch (...) {  // an observer never changes the safe state's path
+  // SIGKILL and crashes, stood down once the outputs are confirmed off. Explicit paths run
+  // SafeState() and Disarm() the guard, so the guard's own action runs only on a signal (INT,
+  // TERM, HUP, QUIT): outputs off first, then the log line (the log may be a closed pipe).
+  void ArmTheSafeState() {
+    rig_ = std::make_unique<gen::RigGenerators>(*inst_.master, *inst_.slave);
+    if (options_.watchdog.enabled()) {
+      watchdog_ = gen::Watchdog::Start(
+          options_.watchdog,
+          gen::WatchdogConfigFor(options_.generators, (out_ / "session_log.txt").string()));
+      log_->Line("watchdog armed (pid " + std::to_string(watchdog_->pid()) + ")");
     }
-  };
-  auto safe_state = [&] {
-    const bool ok = rig.SafeState();
-    if (ok && watchdog) watchdog->StandDown();
-    log.SetGeneratorEpoch(std::nullopt);
-    SessionEvent e;
-    e.kind = SessionEvent::Kind::kSafeState;
-    e.confirmed = ok;
-    e.text = ok ? "safe state: generator outputs off (confirmed)"
-                : "safe state: outputs off NOT confirmed by both generators";
-    log.Line(e.text, ok ? "info" : "error");
-    result.safe_state_confirmed = ok;
-    emit(e);
-    report_rig(/*outputs_on=*/!ok);
-  };
-  // Explicit paths below run safe_state() and Disarm() the guard, so the guard's own action runs
-  // only on a signal (INT, TERM, HUP, QUIT).
-  // On a signal: outputs off first, then the log line (the log may be a closed pipe).
-  gen::SafeStateGuard guard([&] {
-    safe_state();
-    if (!result.safe_state_confirmed) gen::SafeStateGuard::ReportUnconfirmed();
-    log.Line("interrupted (signal): generator outputs switched off", "error");
-  });
-  int accepted_total = 0;
-  try {
-    // The whole table is checked once (duty, times); each frame then plays its own pattern.
-    (void)PlanSessionSignals(options.generators.signals, plan);
-    FrameSignals playing = Step1Signals(plan);
-    const gen::RigSignalPlan signals = PlanFrameSignals(options.generators.signals, plan, playing);
-    rig.Apply(signals, playing.fast_on, playing.slow_on);
-    rig.VerifyLock();
+    guard_ = std::make_unique<gen::SafeStateGuard>([this] {
+      SafeState();
+      if (!result_.safe_state_confirmed) gen::SafeStateGuard::ReportUnconfirmed();
+      log_->Line("interrupted (signal): generator outputs switched off", "error");
+    });
+  }
+
+  // The whole trigger table is checked once (duty, times); the generators then start with step
+  // 1's signals, locked. Each frame plays its own pattern afterwards (Play).
+  void StartTheSignals() {
+    (void)PlanSessionSignals(options_.generators.signals, plan_);
+    playing_ = Step1Signals(plan_);
+    const gen::RigSignalPlan signals =
+        PlanFrameSignals(options_.generators.signals, plan_, playing_);
+    rig_->Apply(signals, playing_.fast_on, playing_.slow_on);
+    rig_->VerifyLock();
     char buf[240];
     std::snprintf(buf, sizeof(buf),
                   "generators: drives (outputs off), clock and a one-pulse laser pattern (arb "
@@ -853,336 +862,419 @@ SessionResult RunSession(const OrchestratorOptions& options, const dataset::Reco
                   static_cast<long long>(signals.trigger.arb.points),
                   signals.trigger.arb.sample_rate_sps,
                   signals.trigger.max_quantisation_error_s * 1e6);
-    log.Line(buf);
-    report_rig(/*outputs_on=*/true);
-    const double pattern_period_s = signals.trigger.pattern_period_s;
-    auto on_off = [](bool on) { return on ? "on" : "off"; };
-    // Makes the generators play `want` (what a frame or a recording needs): a new laser pattern
-    // through ReplaceLaserArb, drive outputs through SetDrives; never a re-arm, so the drives,
-    // the laser and the clock keep the start trigger's time base. After a drive change, waits
-    // drive_settle_periods pattern periods before returning.
-    auto play = [&](const FrameSignals& want, const std::string& what) {
-      if (want == playing) return;
-      const bool drives = want.fast_on != playing.fast_on || want.slow_on != playing.slow_on;
-      if (want.triggers != playing.triggers) {
-        const gen::RigSignalPlan p = PlanFrameSignals(options.generators.signals, plan, want);
-        std::string ids;
-        for (int j : want.triggers) ids += (ids.empty() ? "" : ",") + std::to_string(j);
-        transcript.Comment(what + ": laser pattern of triggers [" + ids + "] (same arb, points " +
-                           "and rate; not re-armed)");
-        rig.ReplaceLaserArb(p.unit2_ch1);
-        log.Line("generators: " + what + ": laser pattern " + std::to_string(want.triggers.size()) +
-                 " trigger(s) [" + ids + "]");
-      }
-      if (drives) {
-        transcript.Comment(what + ": fast drive " + on_off(want.fast_on) + ", slow drive " +
-                           on_off(want.slow_on));
-        rig.SetDrives(want.fast_on, want.slow_on);
-      }
-      playing = want;
-      if (drives) {
-        const double settle_s = options.drive_settle_periods * pattern_period_s;
-        char line[200];
-        std::snprintf(line, sizeof(line),
-                      "generators: %s: fast drive %s, slow drive %s; settling %.3g s (%.3g "
-                      "pattern periods)",
-                      what.c_str(), on_off(want.fast_on), on_off(want.slow_on), settle_s,
-                      options.drive_settle_periods);
-        log.Line(line);
-        // The drive's settle: generator time runs on the host's steady clock to within the LAN
-        // latency; frames are asked for (and the operator's freshness starts) only afterwards.
-        if (settle_s > 0) std::this_thread::sleep_for(std::chrono::duration<double>(settle_s));
-      }
-    };
-
-    if (camera::Status s = inst.cam->Start(); !s)
+    log_->Line(buf);
+    ReportRig(/*outputs_on=*/true);
+    pattern_period_s_ = signals.trigger.pattern_period_s;
+    if (camera::Status s = inst_.cam->Start(); !s)
       throw std::runtime_error("camera: start streaming: " + s.message);
-
-    // Grabs a frame exposed after the current setup, runs the gate, journals the frame (image
-    // on disk first).
-    auto acquire = [&](int step, size_t index, size_t count, const std::string& file, int expected,
-                       store::FrameRecord record) -> FrameOutcome {
-      FrameOutcome fo;
-      fo.file = file;
-      for (int attempt = 0; attempt < options.max_gate_attempts; ++attempt) {
-        cv::Mat image;
-        for (int stale = 0; image.empty(); ++stale) {
-          if (stale > options.max_stale_frames)
-            throw std::runtime_error(file + ": no frame of the current setup after " +
-                                     std::to_string(stale) + " frames");
-          camera::FrameResult fr =
-              inst.cam->NextFrame(static_cast<int64_t>(options.frame_timeout_ms) * 1000);
-          if (fr.status != camera::FrameStatus::kOk)
-            throw std::runtime_error(
-                file + ": camera: " + std::string(camera::FrameStatusName(fr.status)) + " " +
-                fr.message);
-          if (rig_operator.FrameShowsCurrentSetup(fr.frame.info())) image = FrameToMat(fr.frame);
-        }
-        GateResult g;
-        g.accepted = true;
-        if (options.run_quality_gate)
-          g = CheckFrame(image, step, expected, plan.world_board, plan.sliding_board, options.gate);
-        const bool last = g.accepted || attempt + 1 == options.max_gate_attempts;
-        if (options.on_frame) {
-          FrameReport report;
-          report.step = step;
-          report.index = index;
-          report.count = count;
-          report.file = file;
-          report.attempt = attempt;
-          report.accepted = g.accepted;
-          report.final = last;
-          report.gate = options.run_quality_gate ? &g : nullptr;
-          report.image = &image;
-          options.on_frame(report);
-        }
-        record.accepted = g.accepted;
-        record.quality_json = QualityJson(g, options.run_quality_gate, attempt, file);
-        if (g.accepted) {
-          record.file = file;
-          journal->AddFrame(record, image);
-          recorded[file] = true;
-          fo.accepted = true;
-          fo.reason.clear();
-          return fo;
-        }
-        fo.reason = g.reason;
-        if (last) {
-          // Kept for inspection, outside the interchange layout.
-          record.file = RejectedFile(file);
-          journal->AddFrame(record, image);
-          recorded[file] = false;
-        }
-      }
-      return fo;
-    };
-    auto note = [&](FrameOutcome fo, size_t i, size_t n, const char* step) {
-      SessionEvent e;
-      e.kind = SessionEvent::Kind::kFrameDecided;
-      e.step = step[5] == '1' ? 1 : 2;  // "step 1" | "step 2"
-      e.index = i;
-      e.count = n;
-      e.file = fo.file;
-      e.accepted = fo.accepted;
-      e.from_journal = fo.from_journal;
-      e.reason = fo.reason;
-      e.text = std::string(step) + ": frame " + std::to_string(i + 1) + "/" + std::to_string(n) +
-               " " + fo.file +
-               (fo.from_journal ? (fo.accepted ? " accepted before the resume (kept)"
-                                               : " rejected before the resume (kept)")
-                : fo.accepted   ? " accepted"
-                                : " REJECTED: " + fo.reason);
-      log.Line(e.text, fo.accepted ? "info" : "warning");
-      emit(e);
-      result.frames.push_back(fo);
-      if (fo.accepted && !fo.from_journal && options.fail_after_frames >= 0 &&
-          ++accepted_total > options.fail_after_frames)
-        throw std::runtime_error("injected failure after " + std::to_string(accepted_total) +
-                                 " accepted frames (test hook)");
-    };
-    auto from_journal = [&](const std::string& file, FrameOutcome* fo) {
-      const auto it = recorded.find(file);
-      if (it == recorded.end()) return false;
-      fo->file = file;
-      fo->accepted = it->second;
-      fo->from_journal = true;
-      return true;
-    };
-
-    // Step 1: sliding plate poses, MSM not mounted.
-    if (!StepDone(*journal, kStep1)) {
-      set_step(kStep1, store::StepState::kRunning);
-      for (size_t i = 0; i < plan.step1.size(); ++i) {
-        const auto& f = plan.step1[i];
-        FrameOutcome fo;
-        if (!from_journal(f.file, &fo)) {
-          play(Step1Signals(plan), f.file);
-          {
-            LivePump pump(inst.cam.get(), options.on_live_frame, 1, i);
-            rig_operator.PrepareStep1Frame(i);
-          }
-          store::FrameRecord record;
-          record.step = "step1";
-          record.pose = f.pose;
-          record.beams = f.beams;
-          fo = acquire(1, i, plan.step1.size(), f.file, ExpectedDots(f), record);
-        }
-        note(fo, i, plan.step1.size(), "step 1");
-      }
-      set_step(kStep1, store::StepState::kDone);
-    } else {
-      log.Line("step 1: done before the resume");
-      for (const auto& f : plan.step1) {
-        FrameOutcome fo;
-        if (from_journal(f.file, &fo)) result.frames.push_back(fo);
-      }
-    }
-
-    // A Hall recording into hall/<name>.csv, journalled once complete. The journal reads the
-    // CSV back rather than keeping its own copy of the batches: one conversion from MCU frames
-    // to readings (the writer's, with its reset handling), and the journal holds exactly what
-    // the interchange folder holds.
-    auto hall_done = [&](const std::string& name, const acquisition::HallRecorderResult& r) {
-      const fs::path csv = out / "hall" / (name + ".csv");
-      // An MCU reset restarts MCU time: the writer put the readings after it into
-      // <name>-reset<N>.csv. The recording is not continuous, so it is not journalled as done
-      // (the session used to go on silently with the part before the reset): the session stops,
-      // and `msmcal resume` keeps the pieces aside and takes the recording again.
-      const fs::path after_reset = out / "hall" / (name + "-reset1.csv");
-      if (fs::exists(after_reset))
-        throw std::runtime_error(csv.string() + ": the Hall MCU reset during the recording (" +
-                                 std::to_string(r.counts.driver.resets) +
-                                 " reset(s) counted; MCU time restarted, the readings after it "
-                                 "are in " +
-                                 after_reset.filename().string() +
-                                 "): a Hall recording must be continuous; `msmcal resume` "
-                                 "takes it again");
-      const dataset::HallRecording rec =
-          interchange::ReadHallCsv(csv, acquisition::ClockCsvPathFor(csv));
-      journal->AppendHallReadings(name, rec.readings);
-      journal->AppendClockEdges(name, rec.clock_edges_us);
-      journal->SetMeta("hall." + name + ".present", "1");
-      journal->SetMeta("hall." + name + ".readings_dropped",
-                       std::to_string(r.counts.readings_dropped));
-      journal->SetMeta("hall." + name + ".readings_lost",
-                       std::to_string(r.counts.driver.readings_lost));
-      SessionEvent e;
-      e.kind = SessionEvent::Kind::kHallDone;
-      e.recording = name;
-      e.readings = r.counts.readings_delivered;
-      e.edges = r.counts.edges_delivered;
-      e.lost = r.counts.driver.readings_lost;
-      e.dropped = r.counts.readings_dropped;
-      e.text = "Hall: " + name + " " + std::to_string(e.readings) + " readings, " +
-               std::to_string(e.edges) + " clock edges, " + std::to_string(e.lost) + " lost, " +
-               std::to_string(e.dropped) + " dropped (recorder queue full) (" +
-               acquisition::ToString(r.end) + ")";
-      log.Line(e.text, e.dropped > 0 ? "warning" : "info");
-      emit(e);
-    };
-    auto keep_partial = [&](const std::string& name) {
-      for (const auto& f : KeepPartialHall(out / "hall", name)) {
-        log.Line("Hall: the " + name + " recording cut short before the resume is kept as " + f +
-                     " and taken again",
-                 "warning");
-        result.partial_hall_files.push_back(f);
-      }
-    };
-
-    // Background Hall recording (mirror top frame removed, coils driven).
-    if (!StepDone(*journal, kStepBackground)) {
-      set_step(kStepBackground, store::StepState::kRunning);
-      keep_partial("background");
-      if (ask_background_later) {
-        std::string device;
-        {
-          LivePump pump(inst.cam.get(), options.on_live_frame, 0, 0);
-          device = rig_operator.PrepareHallRecording(HallRun::kBackground);
-        }
-        if (device != background_device) {
-          inst.mcu.reset();
-          hall_mcu::HallMcuOptions link = options.mcu;
-          link.device = device;
-          inst.mcu = Instruments(options).OpenHallSensor(link);
-          background_device = device;
-        }
-      }
-      play(BackgroundSignals(plan), "Hall background");
-      emit(HallStarted("background", background_device, log));
-      const auto r = RecordHall(*inst.mcu, out / "hall" / "background.csv", options,
-                                options.background_seconds, nullptr);
-      result.background_readings = r.counts.readings_delivered;
-      result.background_edges = r.counts.edges_delivered;
-      hall_done("background", r);
-      set_step(kStepBackground, store::StepState::kDone);
-    } else {
-      log.Line("Hall: background recording done before the resume");
-    }
-    inst.mcu.reset();
-
-    // Step 2 with the actual Hall recording running.
-    if (!StepDone(*journal, kStep2)) {
-      set_step(kStep2, store::StepState::kRunning);
-      keep_partial("actual");
-      std::string actual_device;
-      {
-        LivePump pump(inst.cam.get(), options.on_live_frame, 0, 0);
-        actual_device = rig_operator.PrepareHallRecording(HallRun::kActual);
-      }
-      hall_mcu::HallMcuOptions link = options.mcu;
-      link.device = actual_device;
-      auto actual_mcu = Instruments(options).OpenHallSensor(link);
-      emit(HallStarted("actual", actual_device, log));
-      const auto r =
-          RecordHall(*actual_mcu, out / "hall" / "actual.csv", options, 0.0,
-                     [&](const std::function<void()>& check_hall) {
-                       for (size_t i = 0; i < plan.step2.size(); ++i) {
-                         check_hall();
-                         const auto& f = plan.step2[i];
-                         FrameOutcome fo;
-                         if (!from_journal(f.file, &fo)) {
-                           play(Step2Signals(plan, f), f.file);
-                           {
-                             LivePump pump(inst.cam.get(), options.on_live_frame, 2, i);
-                             rig_operator.PrepareStep2Frame(i);
-                           }
-                           store::FrameRecord record;
-                           record.step = "step2";
-                           record.kind = f.kind;
-                           record.beams = f.beams;
-                           record.triggers = f.triggers;
-                           fo = acquire(2, i, plan.step2.size(), f.file, ExpectedDots(f), record);
-                         }
-                         note(fo, i, plan.step2.size(), "step 2");
-                       }
-                     });
-      result.actual_readings = r.counts.readings_delivered;
-      result.actual_edges = r.counts.edges_delivered;
-      hall_done("actual", r);
-      set_step(kStep2, store::StepState::kDone);
-    }
-    inst.cam->Stop();
-  } catch (const std::exception& e) {
-    log.Line(std::string("ERROR: ") + e.what(), "error");
-    if (inst.cam) inst.cam->Stop();
-    safe_state();
-    guard.Disarm();  // outputs are off already
-    throw;
   }
-  safe_state();
-  guard.Disarm();
+
+  // Step 1: sliding plate poses, MSM not mounted.
+  void Step1() {
+    if (StepDone(*journal_, kStep1)) {
+      log_->Line("step 1: done before the resume");
+      for (const auto& f : plan_.step1) {
+        FrameOutcome fo;
+        if (FromJournal(f.file, &fo)) result_.frames.push_back(fo);
+      }
+      return;
+    }
+    SetStep(kStep1, store::StepState::kRunning);
+    for (size_t i = 0; i < plan_.step1.size(); ++i) {
+      const auto& f = plan_.step1[i];
+      FrameOutcome fo;
+      if (!FromJournal(f.file, &fo)) {
+        Play(Step1Signals(plan_), f.file);
+        {
+          LivePump pump(inst_.cam.get(), options_.on_live_frame, 1, i);
+          operator_.PrepareStep1Frame(i);
+        }
+        store::FrameRecord record;
+        record.step = "step1";
+        record.pose = f.pose;
+        record.beams = f.beams;
+        fo = Acquire(1, i, plan_.step1.size(), f.file, ExpectedDots(f), record);
+      }
+      Note(fo, i, plan_.step1.size(), "step 1");
+    }
+    SetStep(kStep1, store::StepState::kDone);
+  }
+
+  // The background Hall recording (mirror top frame removed, coils driven).
+  void BackgroundHallRecording() {
+    if (StepDone(*journal_, kStepBackground)) {
+      log_->Line("Hall: background recording done before the resume");
+      inst_.mcu.reset();
+      return;
+    }
+    SetStep(kStepBackground, store::StepState::kRunning);
+    KeepPartial("background");
+    if (ask_background_later_) {
+      std::string device;
+      {
+        LivePump pump(inst_.cam.get(), options_.on_live_frame, 0, 0);
+        device = operator_.PrepareHallRecording(HallRun::kBackground);
+      }
+      if (device != background_device_) {
+        inst_.mcu.reset();
+        hall_mcu::HallMcuOptions link = options_.mcu;
+        link.device = device;
+        inst_.mcu = Instruments(options_).OpenHallSensor(link);
+        background_device_ = device;
+      }
+    }
+    Play(BackgroundSignals(plan_), "Hall background");
+    Emit(HallStarted("background", background_device_, *log_));
+    const auto r = RecordHall(*inst_.mcu, out_ / "hall" / "background.csv", options_,
+                              options_.background_seconds, nullptr);
+    result_.background_readings = r.counts.readings_delivered;
+    result_.background_edges = r.counts.edges_delivered;
+    HallDone("background", r);
+    SetStep(kStepBackground, store::StepState::kDone);
+    inst_.mcu.reset();
+  }
+
+  // Step 2 (MSM mounted, camera at C2) with the actual Hall recording running through it.
+  void Step2WithTheActualHallRecording() {
+    if (StepDone(*journal_, kStep2)) return;
+    SetStep(kStep2, store::StepState::kRunning);
+    KeepPartial("actual");
+    std::string actual_device;
+    {
+      LivePump pump(inst_.cam.get(), options_.on_live_frame, 0, 0);
+      actual_device = operator_.PrepareHallRecording(HallRun::kActual);
+    }
+    hall_mcu::HallMcuOptions link = options_.mcu;
+    link.device = actual_device;
+    auto actual_mcu = Instruments(options_).OpenHallSensor(link);
+    Emit(HallStarted("actual", actual_device, *log_));
+    const auto r = RecordHall(*actual_mcu, out_ / "hall" / "actual.csv", options_, 0.0,
+                              [&](const std::function<void()>& check_hall) {
+                                for (size_t i = 0; i < plan_.step2.size(); ++i) {
+                                  check_hall();
+                                  Step2Frame(i);
+                                }
+                              });
+    result_.actual_readings = r.counts.readings_delivered;
+    result_.actual_edges = r.counts.edges_delivered;
+    HallDone("actual", r);
+    SetStep(kStep2, store::StepState::kDone);
+  }
+
+  void Step2Frame(size_t i) {
+    const auto& f = plan_.step2[i];
+    FrameOutcome fo;
+    if (!FromJournal(f.file, &fo)) {
+      Play(Step2Signals(plan_, f), f.file);
+      {
+        LivePump pump(inst_.cam.get(), options_.on_live_frame, 2, i);
+        operator_.PrepareStep2Frame(i);
+      }
+      store::FrameRecord record;
+      record.step = "step2";
+      record.kind = f.kind;
+      record.beams = f.beams;
+      record.triggers = f.triggers;
+      fo = Acquire(2, i, plan_.step2.size(), f.file, ExpectedDots(f), record);
+    }
+    Note(fo, i, plan_.step2.size(), "step 2");
+  }
 
   // session.yaml last: a folder with a session.yaml is complete. The frames kept are those
   // recorded as accepted (before a resume or now), in plan order.
-  auto accepted = [&](const std::string& file) {
-    const auto it = recorded.find(file);
-    return it != recorded.end() && it->second;
-  };
-  dataset::Recording rec = plan;
-  rec.hall_actual.reset();
-  rec.hall_background.reset();
-  rec.step1.clear();
-  rec.step2.clear();
-  for (const auto& f : plan.step1)
-    if (accepted(f.file)) rec.step1.push_back(f);
-  for (const auto& f : plan.step2)
-    if (accepted(f.file)) rec.step2.push_back(f);
-  if (std::string e = interchange::CheckRecording(rec); !e.empty())
-    throw std::runtime_error("session after quality gates: " + e);
-  interchange::WriteRecording(out, rec);
-  (void)interchange::ReadRecording(out);  // reads back, Hall files included
-  set_step(kStepSessionWritten, store::StepState::kDone);
-  SessionEvent written;
-  written.kind = SessionEvent::Kind::kSessionWritten;
-  written.step1_accepted = rec.step1.size();
-  written.step2_accepted = rec.step2.size();
-  written.text = "session written: " + std::to_string(rec.step1.size()) + "/" +
-                 std::to_string(plan.step1.size()) + " step-1 and " +
-                 std::to_string(rec.step2.size()) + "/" + std::to_string(plan.step2.size()) +
-                 " step-2 frames accepted";
-  log.Line(written.text);
-  emit(written);
-  return result;
+  void WriteTheSession() {
+    dataset::Recording rec = plan_;
+    rec.hall_actual.reset();
+    rec.hall_background.reset();
+    rec.step1.clear();
+    rec.step2.clear();
+    for (const auto& f : plan_.step1)
+      if (Accepted(f.file)) rec.step1.push_back(f);
+    for (const auto& f : plan_.step2)
+      if (Accepted(f.file)) rec.step2.push_back(f);
+    if (std::string e = interchange::CheckRecording(rec); !e.empty())
+      throw std::runtime_error("session after quality gates: " + e);
+    interchange::WriteRecording(out_, rec);
+    (void)interchange::ReadRecording(out_);  // reads back, Hall files included
+    SetStep(kStepSessionWritten, store::StepState::kDone);
+    SessionEvent written;
+    written.kind = SessionEvent::Kind::kSessionWritten;
+    written.step1_accepted = rec.step1.size();
+    written.step2_accepted = rec.step2.size();
+    written.text = "session written: " + std::to_string(rec.step1.size()) + "/" +
+                   std::to_string(plan_.step1.size()) + " step-1 and " +
+                   std::to_string(rec.step2.size()) + "/" + std::to_string(plan_.step2.size()) +
+                   " step-2 frames accepted";
+    log_->Line(written.text);
+    Emit(written);
+  }
+
+  // --- What the steps share ------------------------------------------------------------------
+
+  // One typed event per fact (its log line as `text`).
+  void Emit(const SessionEvent& e) {
+    if (options_.on_event) options_.on_event(e);
+  }
+
+  // Steps change state in the journal and as an event.
+  void SetStep(const char* name, store::StepState state) {
+    journal_->SetStep(name, state);
+    SessionEvent e;
+    e.kind = SessionEvent::Kind::kStepState;
+    e.step_name = name;
+    e.state = store::ToString(state);
+    e.text = std::string("step ") + name + ": " + e.state;
+    Emit(e);
+  }
+
+  void ReportRig(bool outputs_on) {
+    if (!options_.on_rig_status) return;
+    RigStatus st;
+    st.outputs_on = outputs_on;
+    st.reference_locked = outputs_on;
+    try {
+      options_.on_rig_status(st);
+    } catch (...) {  // an observer never changes the safe state's path
+    }
+  }
+
+  void SafeState() {
+    const bool ok = rig_->SafeState();
+    if (ok && watchdog_) watchdog_->StandDown();
+    log_->SetGeneratorEpoch(std::nullopt);
+    SessionEvent e;
+    e.kind = SessionEvent::Kind::kSafeState;
+    e.confirmed = ok;
+    e.text = ok ? "safe state: generator outputs off (confirmed)"
+                : "safe state: outputs off NOT confirmed by both generators";
+    log_->Line(e.text, ok ? "info" : "error");
+    result_.safe_state_confirmed = ok;
+    Emit(e);
+    ReportRig(/*outputs_on=*/!ok);
+  }
+
+  // Makes the generators play `want` (what a frame or a recording needs): a new laser pattern
+  // through ReplaceLaserArb, drive outputs through SetDrives; never a re-arm, so the drives, the
+  // laser and the clock keep the start trigger's time base. After a drive change, waits
+  // drive_settle_periods pattern periods before returning.
+  void Play(const FrameSignals& want, const std::string& what) {
+    if (want == playing_) return;
+    auto on_off = [](bool on) { return on ? "on" : "off"; };
+    const bool drives = want.fast_on != playing_.fast_on || want.slow_on != playing_.slow_on;
+    if (want.triggers != playing_.triggers) {
+      const gen::RigSignalPlan p = PlanFrameSignals(options_.generators.signals, plan_, want);
+      std::string ids;
+      for (int j : want.triggers) ids += (ids.empty() ? "" : ",") + std::to_string(j);
+      transcript_->Comment(what + ": laser pattern of triggers [" + ids +
+                           "] (same arb, points and rate; not re-armed)");
+      rig_->ReplaceLaserArb(p.unit2_ch1);
+      log_->Line("generators: " + what + ": laser pattern " + std::to_string(want.triggers.size()) +
+                 " trigger(s) [" + ids + "]");
+    }
+    if (drives) {
+      transcript_->Comment(what + ": fast drive " + on_off(want.fast_on) + ", slow drive " +
+                           on_off(want.slow_on));
+      rig_->SetDrives(want.fast_on, want.slow_on);
+    }
+    playing_ = want;
+    if (drives) {
+      const double settle_s = options_.drive_settle_periods * pattern_period_s_;
+      char line[200];
+      std::snprintf(line, sizeof(line),
+                    "generators: %s: fast drive %s, slow drive %s; settling %.3g s (%.3g "
+                    "pattern periods)",
+                    what.c_str(), on_off(want.fast_on), on_off(want.slow_on), settle_s,
+                    options_.drive_settle_periods);
+      log_->Line(line);
+      // The drive's settle: generator time runs on the host's steady clock to within the LAN
+      // latency; frames are asked for (and the operator's freshness starts) only afterwards.
+      if (settle_s > 0) std::this_thread::sleep_for(std::chrono::duration<double>(settle_s));
+    }
+  }
+
+  // Grabs a frame exposed after the current setup, runs the gate, journals the frame (image on
+  // disk first).
+  FrameOutcome Acquire(int step, size_t index, size_t count, const std::string& file, int expected,
+                       store::FrameRecord record) {
+    FrameOutcome fo;
+    fo.file = file;
+    for (int attempt = 0; attempt < options_.max_gate_attempts; ++attempt) {
+      cv::Mat image;
+      for (int stale = 0; image.empty(); ++stale) {
+        if (stale > options_.max_stale_frames)
+          throw std::runtime_error(file + ": no frame of the current setup after " +
+                                   std::to_string(stale) + " frames");
+        camera::FrameResult fr =
+            inst_.cam->NextFrame(static_cast<int64_t>(options_.frame_timeout_ms) * 1000);
+        if (fr.status != camera::FrameStatus::kOk)
+          throw std::runtime_error(file +
+                                   ": camera: " + std::string(camera::FrameStatusName(fr.status)) +
+                                   " " + fr.message);
+        if (operator_.FrameShowsCurrentSetup(fr.frame.info())) image = FrameToMat(fr.frame);
+      }
+      GateResult g;
+      g.accepted = true;
+      if (options_.run_quality_gate)
+        g = CheckFrame(image, step, expected, plan_.world_board, plan_.sliding_board,
+                       options_.gate);
+      const bool last = g.accepted || attempt + 1 == options_.max_gate_attempts;
+      if (options_.on_frame) {
+        FrameReport report;
+        report.step = step;
+        report.index = index;
+        report.count = count;
+        report.file = file;
+        report.attempt = attempt;
+        report.accepted = g.accepted;
+        report.final = last;
+        report.gate = options_.run_quality_gate ? &g : nullptr;
+        report.image = &image;
+        options_.on_frame(report);
+      }
+      record.accepted = g.accepted;
+      record.quality_json = QualityJson(g, options_.run_quality_gate, attempt, file);
+      if (g.accepted) {
+        record.file = file;
+        journal_->AddFrame(record, image);
+        recorded_[file] = true;
+        fo.accepted = true;
+        fo.reason.clear();
+        return fo;
+      }
+      fo.reason = g.reason;
+      if (last) {
+        // Kept for inspection, outside the interchange layout.
+        record.file = RejectedFile(file);
+        journal_->AddFrame(record, image);
+        recorded_[file] = false;
+      }
+    }
+    return fo;
+  }
+
+  // A frame decided: its event and log line.
+  void Note(const FrameOutcome& fo, size_t i, size_t n, const char* step) {
+    SessionEvent e;
+    e.kind = SessionEvent::Kind::kFrameDecided;
+    e.step = step[5] == '1' ? 1 : 2;  // "step 1" | "step 2"
+    e.index = i;
+    e.count = n;
+    e.file = fo.file;
+    e.accepted = fo.accepted;
+    e.from_journal = fo.from_journal;
+    e.reason = fo.reason;
+    e.text = std::string(step) + ": frame " + std::to_string(i + 1) + "/" + std::to_string(n) +
+             " " + fo.file +
+             (fo.from_journal ? (fo.accepted ? " accepted before the resume (kept)"
+                                             : " rejected before the resume (kept)")
+              : fo.accepted   ? " accepted"
+                              : " REJECTED: " + fo.reason);
+    log_->Line(e.text, fo.accepted ? "info" : "warning");
+    result_.frames.push_back(fo);
+    Emit(e);
+  }
+
+  // A frame recorded before a resume (accepted or rejected) is not taken again.
+  bool FromJournal(const std::string& file, FrameOutcome* fo) const {
+    const auto it = recorded_.find(file);
+    if (it == recorded_.end()) return false;
+    fo->file = file;
+    fo->accepted = it->second;
+    fo->from_journal = true;
+    return true;
+  }
+
+  bool Accepted(const std::string& file) const {
+    const auto it = recorded_.find(file);
+    return it != recorded_.end() && it->second;
+  }
+
+  // A Hall recording into hall/<name>.csv, journalled once complete. The journal reads the CSV
+  // back rather than keeping its own copy of the batches: one conversion from MCU frames to
+  // readings (the writer's, with its reset handling), and the journal holds exactly what the
+  // interchange folder holds.
+  void HallDone(const std::string& name, const acquisition::HallRecorderResult& r) {
+    const fs::path csv = out_ / "hall" / (name + ".csv");
+    // An MCU reset restarts MCU time: the writer put the readings after it into
+    // <name>-reset<N>.csv. The recording is not continuous, so it is not journalled as done (the
+    // session used to go on silently with the part before the reset): the session stops, and
+    // `msmcal resume` keeps the pieces aside and takes the recording again.
+    const fs::path after_reset = out_ / "hall" / (name + "-reset1.csv");
+    if (fs::exists(after_reset))
+      throw std::runtime_error(csv.string() + ": the Hall MCU reset during the recording (" +
+                               std::to_string(r.counts.driver.resets) +
+                               " reset(s) counted; MCU time restarted, the readings after it "
+                               "are in " +
+                               after_reset.filename().string() +
+                               "): a Hall recording must be continuous; `msmcal resume` takes "
+                               "it again");
+    const dataset::HallRecording rec =
+        interchange::ReadHallCsv(csv, acquisition::ClockCsvPathFor(csv));
+    journal_->AppendHallReadings(name, rec.readings);
+    journal_->AppendClockEdges(name, rec.clock_edges_us);
+    journal_->SetMeta("hall." + name + ".present", "1");
+    journal_->SetMeta("hall." + name + ".readings_dropped",
+                      std::to_string(r.counts.readings_dropped));
+    journal_->SetMeta("hall." + name + ".readings_lost",
+                      std::to_string(r.counts.driver.readings_lost));
+    SessionEvent e;
+    e.kind = SessionEvent::Kind::kHallDone;
+    e.recording = name;
+    e.readings = r.counts.readings_delivered;
+    e.edges = r.counts.edges_delivered;
+    e.lost = r.counts.driver.readings_lost;
+    e.dropped = r.counts.readings_dropped;
+    e.text = "Hall: " + name + " " + std::to_string(e.readings) + " readings, " +
+             std::to_string(e.edges) + " clock edges, " + std::to_string(e.lost) + " lost, " +
+             std::to_string(e.dropped) + " dropped (recorder queue full) (" +
+             acquisition::ToString(r.end) + ")";
+    log_->Line(e.text, e.dropped > 0 ? "warning" : "info");
+    Emit(e);
+  }
+
+  // A recording cut short before a resume is moved aside and taken again whole.
+  void KeepPartial(const std::string& name) {
+    for (const auto& f : KeepPartialHall(out_ / "hall", name)) {
+      log_->Line("Hall: the " + name + " recording cut short before the resume is kept as " + f +
+                     " and taken again",
+                 "warning");
+      result_.partial_hall_files.push_back(f);
+    }
+  }
+
+  // --- State ---------------------------------------------------------------------------------
+  const OrchestratorOptions& options_;
+  const dataset::Recording& plan_;
+  RigOperator& operator_;
+  const ProgressFn& progress_;
+  const fs::path out_;
+  const store::SystemClock system_clock_;
+  const store::Clock& clock_;
+  SessionResult result_;
+  // Frames in the journal (recorded before a resume or in this run), by plan file: true when
+  // accepted. Each plan file is looked up once, before it is acquired.
+  std::map<std::string, bool> recorded_;
+  std::string background_device_;
+  bool ask_background_later_ = false;
+  FrameSignals playing_;
+  double pattern_period_s_ = 0;
+  // Declared in the order they are made; destroyed in reverse (the guard first).
+  std::unique_ptr<store::SessionStore> journal_;
+  std::unique_ptr<SessionLog> log_;
+  std::unique_ptr<TranscriptFile> transcript_;
+  OpenInstruments inst_;
+  std::unique_ptr<gen::RigGenerators> rig_;
+  std::unique_ptr<gen::Watchdog> watchdog_;
+  std::unique_ptr<gen::SafeStateGuard> guard_;
+};
+
+}  // namespace
+
+SessionResult RunSession(const OrchestratorOptions& options, const dataset::Recording& plan,
+                         RigOperator& rig_operator, const ProgressFn& progress) {
+  if (std::string e = options.Validate(); !e.empty()) throw std::invalid_argument(e);
+  SessionController controller(options, plan, rig_operator, progress);
+  return controller.Run();
 }
 
 }  // namespace msmcal::orchestrator

@@ -129,10 +129,9 @@ struct OrchestratorOptions {
   // and replay sources only; a real MCU streams forever). The actual recording runs for the whole
   // of step 2 and is stopped when step 2 ends.
   double background_seconds = 12.0;
-  // Test hook: throw after this many accepted frames (< 0: never) to exercise the safe state.
-  int fail_after_frames = -1;
-  // Test hook: every Hall batch passes through it on the recorder's sink thread before the CSV
-  // writer (empty: none). A hook that throws stands for a failing sink (disk full on hall/).
+  // Every Hall batch passes through it on the recorder's sink thread before the CSV writer
+  // (empty: none): a tee, or a fault injected by a test (one that throws stands for a failing
+  // sink, disk full on hall/). Observers that throw end the session in the safe state.
   std::function<void(const hall_mcu::HallBatch&)> hall_sink_hook;
   // Called after every gate decision (may be empty).
   FrameObserver on_frame;

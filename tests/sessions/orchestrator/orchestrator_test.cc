@@ -228,7 +228,13 @@ TEST(Orchestrator, ErrorMidRunSwitchesOutputsOffAndIsLogged) {
   DemoRig rig(ro);
   const fs::path dir = FreshDir("fail");
   OrchestratorOptions options = rig.MakeOrchestratorOptions(dir);
-  options.fail_after_frames = 2;
+  // The failure is injected through the event observer: the third accepted frame throws.
+  int accepted = 0;
+  options.on_event = [&accepted](const SessionEvent& e) {
+    if (e.kind == SessionEvent::Kind::kFrameDecided && e.accepted && ++accepted > 2)
+      throw std::runtime_error("injected failure after " + std::to_string(accepted) +
+                               " accepted frames (test)");
+  };
   bool outputs_were_on = false;
   try {
     RunSession(options, rig.Plan(), rig.world(), [&](const std::string& line) {
