@@ -228,6 +228,10 @@ TEST(Orchestrator, ErrorMidRunSwitchesOutputsOffAndIsLogged) {
   DemoRig rig(ro);
   const fs::path dir = FreshDir("fail");
   OrchestratorOptions options = rig.MakeOrchestratorOptions(dir);
+  // Every time of the session comes from the injected clock: one that advances a whole second
+  // per reading puts every log line at a whole second.
+  const store::FakeClock clock(/*start_ns=*/1'700'000'000'000'000'000, /*step_ns=*/1'000'000'000);
+  options.clock = &clock;
   // The failure is injected through the event observer: the third accepted frame throws.
   int accepted = 0;
   options.on_event = [&accepted](const SessionEvent& e) {
@@ -254,6 +258,16 @@ TEST(Orchestrator, ErrorMidRunSwitchesOutputsOffAndIsLogged) {
   EXPECT_NE(log.find("ERROR: injected failure"), std::string::npos) << log;
   EXPECT_NE(log.find("safe state: generator outputs off"), std::string::npos) << log;
   EXPECT_FALSE(fs::exists(dir / "session.yaml")) << "an aborted session is not complete";
+  std::istringstream lines(log);
+  int stamped = 0;
+  for (std::string line; std::getline(lines, line);) {
+    if (line.rfind("[", 0) != 0) continue;
+    const size_t s_pos = line.find(" s]");
+    ASSERT_NE(s_pos, std::string::npos) << line;
+    EXPECT_EQ(line.substr(s_pos - 4, 4), ".000") << "not the injected clock's time: " << line;
+    ++stamped;
+  }
+  EXPECT_GT(stamped, 5) << log;
 }
 
 // Disk full on hall/ during the background recording: the CSV writer's error, thrown on the
