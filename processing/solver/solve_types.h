@@ -172,8 +172,8 @@ struct SolveOutput {
   std::vector<dataset::MirrorPlaneRow> planes;  // scan planes, ascending j
   std::vector<SupportPlane> support_planes;     // neutral, then fast-only by ascending j
   std::vector<dataset::BeamRow> beams;          // every beam (estimate and validate)
-  std::vector<ValidationDetail> validation;  // by (beam id, j)
-  std::vector<WhitenedResidual> residuals;   // every fitted residual, by family, in fit order
+  std::vector<ValidationDetail> validation;     // by (beam id, j)
+  std::vector<WhitenedResidual> residuals;      // every fitted residual, by family, in fit order
   std::vector<DroppedFrame> dropped;
   std::vector<FrameDetection> detections;  // one per frame of session.yaml, in its order
   std::vector<std::string> notes;          // what the solver decided (associations, counts)

@@ -152,12 +152,12 @@ ValidationResult ValidateHeldOutBeams(const Observations& obs,
     }
     c = (c + c.transpose()) / 2;
     Eigen::VectorXd e(2 * n);
-    for (int i = 0; i < n; ++i) e.segment<2>(2 * i) = kept[i].d.observed_px - kept[i].d.predicted_px;
+    for (int i = 0; i < n; ++i)
+      e.segment<2>(2 * i) = kept[i].d.observed_px - kept[i].d.predicted_px;
     // The noise blocks make C positive definite; LLT fails only on a broken covariance.
     const Eigen::LLT<Eigen::MatrixXd> llt(c);
-    const Eigen::VectorXd w = llt.info() == Eigen::Success
-                                  ? Eigen::VectorXd(llt.matrixL().solve(e))
-                                  : Eigen::VectorXd::Constant(2 * n, NAN);
+    const Eigen::VectorXd w = llt.info() == Eigen::Success ? Eigen::VectorXd(llt.matrixL().solve(e))
+                                                           : Eigen::VectorXd::Constant(2 * n, NAN);
     for (int i = 0; i < n; ++i) kept[i].d.joint_whitened = w.segment<2>(2 * i);
     out.joint_nees = w.squaredNorm();
     out.joint_cov = std::move(c);
@@ -216,8 +216,7 @@ std::vector<WhitenedResidual> WhitenedFitResiduals(const Observations& obs, cons
   for (const auto& d : obs.reflected_dots) {
     const int family = d.near_board_edge ? kReflectedDotsNearEdge : kReflectedDots;
     add(family, d.plane, d.obs.px, d.obs.cov_px2 * mle.covariance_scale[family],
-        PredictReflectedDot(obs.camera, est.c2_from_world, est.beams[d.beam],
-                            est.planes[d.plane]));
+        PredictReflectedDot(obs.camera, est.c2_from_world, est.beams[d.beam], est.planes[d.plane]));
   }
   return out;
 }

@@ -498,17 +498,15 @@ TEST(ValidationStage, JointWhiteningOfHeldOutDotsIsStandardNormalAndIndependent)
     ASSERT_TRUE(est.mle.usable) << seed;
     std::vector<std::pair<Step2Kind, int>> keys;
     for (int p = 0; p < sc.obs.num_planes; ++p) keys.emplace_back(Step2Kind::kScan, p);
-    const ValidationResult v =
-        ValidateHeldOutBeams(est.obs, sc.validation_dots, keys, sc.estimate_beams, {0, 1, 2},
-                             est.mle);
+    const ValidationResult v = ValidateHeldOutBeams(est.obs, sc.validation_dots, keys,
+                                                    sc.estimate_beams, {0, 1, 2}, est.mle);
     const int n = static_cast<int>(v.details.size());
     ASSERT_GT(n, 5) << seed;
     ASSERT_EQ(v.joint_cov.rows(), 2 * n);
     double nees = 0;
     for (int i = 0; i < n; ++i) {
       const ValidationDetail& d = v.details[i];
-      EXPECT_LT((v.joint_cov.block<2, 2>(2 * i, 2 * i) - d.cov_px2).norm(),
-                1e-9 * d.cov_px2.norm())
+      EXPECT_LT((v.joint_cov.block<2, 2>(2 * i, 2 * i) - d.cov_px2).norm(), 1e-9 * d.cov_px2.norm())
           << seed;
       const Eigen::Vector2d e = d.observed_px - d.predicted_px;
       EXPECT_NEAR(e.norm(), d.row.err_px, 1e-12);
@@ -543,11 +541,11 @@ TEST(ValidationStage, JointWhiteningOfHeldOutDotsIsStandardNormalAndIndependent)
   // positive between the marginal ones (the shared beam error).
   EXPECT_LT(std::abs(lag_joint / pairs), 3 / std::sqrt(static_cast<double>(pairs))) << pairs;
   EXPECT_GT(lag_marginal / pairs, 0.3) << pairs;
-  std::printf("held-out dots %d, pairs %d: mean w^2 %.3f, inside 1/2/3 sigma %.3f %.3f %.3f, "
-              "lag correlation joint %.3f, marginal %.3f\n",
-              dots, pairs, sum_w2 / components, double(inside[0]) / dots,
-              double(inside[1]) / dots, double(inside[2]) / dots, lag_joint / pairs,
-              lag_marginal / pairs);
+  std::printf(
+      "held-out dots %d, pairs %d: mean w^2 %.3f, inside 1/2/3 sigma %.3f %.3f %.3f, "
+      "lag correlation joint %.3f, marginal %.3f\n",
+      dots, pairs, sum_w2 / components, double(inside[0]) / dots, double(inside[1]) / dots,
+      double(inside[2]) / dots, lag_joint / pairs, lag_marginal / pairs);
 }
 
 }  // namespace

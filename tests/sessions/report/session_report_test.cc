@@ -4,8 +4,8 @@
 
 #include <Eigen/Cholesky>
 #include <cmath>
-#include <random>
 #include <nlohmann/json.hpp>
+#include <random>
 
 #include "sessions/report/build_info.h"
 #include "sessions/results/results_files.h"
@@ -35,15 +35,15 @@ struct HeldOutSample {
   std::vector<results::ValidationDetailRow> detail;
   std::vector<results::ValidationDotRow> dots;
 };
-HeldOutSample CorrelatedHeldOutDots(int n, double sigma_b, double sigma_n,
-                                    const Eigen::Vector2d& b, uint64_t seed) {
+HeldOutSample CorrelatedHeldOutDots(int n, double sigma_b, double sigma_n, const Eigen::Vector2d& b,
+                                    uint64_t seed) {
   std::mt19937_64 rng(seed);
   std::normal_distribution<double> gauss(0.0, 1.0);
   const double var = sigma_b * sigma_b + sigma_n * sigma_n;
   Eigen::MatrixXd c = Eigen::MatrixXd::Identity(2 * n, 2 * n) * sigma_n * sigma_n;
   for (int i = 0; i < n; ++i)
-    for (int k = 0; k < n; ++k) c.block<2, 2>(2 * i, 2 * k) += Eigen::Matrix2d::Identity() *
-                                                              sigma_b * sigma_b;
+    for (int k = 0; k < n; ++k)
+      c.block<2, 2>(2 * i, 2 * k) += Eigen::Matrix2d::Identity() * sigma_b * sigma_b;
   Eigen::VectorXd e(2 * n);
   HeldOutSample s;
   for (int i = 0; i < n; ++i) {
@@ -65,8 +65,8 @@ HeldOutSample CorrelatedHeldOutDots(int n, double sigma_b, double sigma_n,
     r.normalised_error = std::sqrt(ei.squaredNorm() / var / 2);
     s.detail.push_back(r);
   }
-  const Eigen::VectorXd w = Eigen::MatrixXd(c.llt().matrixL()).triangularView<Eigen::Lower>()
-                                .solve(e);
+  const Eigen::VectorXd w =
+      Eigen::MatrixXd(c.llt().matrixL()).triangularView<Eigen::Lower>().solve(e);
   for (int i = 0; i < n; ++i) s.dots[i].joint_whitened = w.segment<2>(2 * i);
   return s;
 }
@@ -125,9 +125,9 @@ fs::path SolvedFolder(const fs::path& dir, double error_scale,
         }
         return (lo + hi) / 2;
       };
-      residuals.push_back({f, i % 5, Eigen::Vector2d(i, 2 * i),
-                           Eigen::Vector2d(quantile((i + 0.5) / 200),
-                                           quantile(((i * 77) % 200 + 0.5) / 200))});
+      residuals.push_back(
+          {f, i % 5, Eigen::Vector2d(i, 2 * i),
+           Eigen::Vector2d(quantile((i + 0.5) / 200), quantile(((i * 77) % 200 + 0.5) / 200))});
     }
   results::WriteResidualsCsv(dir / "results" / "residuals.csv", residuals);
   results::MirrorPosesSummary s;
@@ -216,8 +216,8 @@ TEST(SessionReport, CorrelatedHeldOutDotsAreJudgedOnTheirJointWhitening) {
   const HeldOutSample sample = CorrelatedHeldOutDots(
       40, sigma_b, sigma_n, Eigen::Vector2d(1.6 * sigma_b * 0.6, 1.6 * sigma_b * 0.8), 5);
   int inside_marginal = 0;
-  for (const auto& d : sample.detail) inside_marginal += 2 * d.normalised_error *
-                                                                 d.normalised_error <= 1;
+  for (const auto& d : sample.detail)
+    inside_marginal += 2 * d.normalised_error * d.normalised_error <= 1;
   ASSERT_LE(inside_marginal, 6) << "the sample does not show the effect";
   std::vector<double> marginal;
   for (const auto& d : sample.detail) marginal.push_back(d.normalised_error);
@@ -257,10 +257,10 @@ TEST(SessionReport, HeldOutResidualVectorsOnTheImageWithTheirScale) {
   EXPECT_NE(v->title.find(text), std::string::npos) << v->title;
   for (size_t i = 0; i < dots.size(); ++i) {
     EXPECT_DOUBLE_EQ(vec.x[3 * i], dots[i].predicted_px.x());
-    EXPECT_NEAR(vec.y[3 * i + 1],
-                dots[i].predicted_px.y() +
-                    scale * (dots[i].observed_px.y() - dots[i].predicted_px.y()),
-                1e-9);
+    EXPECT_NEAR(
+        vec.y[3 * i + 1],
+        dots[i].predicted_px.y() + scale * (dots[i].observed_px.y() - dots[i].predicted_px.y()),
+        1e-9);
     EXPECT_TRUE(std::isnan(vec.x[3 * i + 2]));
   }
   // The 1-sigma ellipse of a dot with C = 0.04 I is a circle of radius scale x 0.2.
