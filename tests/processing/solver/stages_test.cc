@@ -489,6 +489,11 @@ TEST(ValidationStage, JointWhiteningOfHeldOutDotsIsStandardNormalAndIndependent)
     SyntheticSceneOptions o = SmallScene();
     o.seed = seed;
     o.num_planes = 10;
+    if (seed % 2 == 0) {
+      // Two held-out beams: their dots on one plane share it (the plane's own covariance).
+      o.beam_azimuth_deg.push_back(-8.0);
+      o.beam_elevation_deg.push_back(-5.0);
+    }
     const SyntheticScene sc = MakeSyntheticScene(o);
     std::vector<std::vector<char>> clear;
     for (const auto& c : sc.obs.corners) clear.emplace_back(c.px.size(), 1);
@@ -498,8 +503,10 @@ TEST(ValidationStage, JointWhiteningOfHeldOutDotsIsStandardNormalAndIndependent)
     ASSERT_TRUE(est.mle.usable) << seed;
     std::vector<std::pair<Step2Kind, int>> keys;
     for (int p = 0; p < sc.obs.num_planes; ++p) keys.emplace_back(Step2Kind::kScan, p);
-    const ValidationResult v = ValidateHeldOutBeams(est.obs, sc.validation_dots, keys,
-                                                    sc.estimate_beams, {0, 1, 2}, est.mle);
+    std::vector<int> ids(sc.truth.beams.size());
+    for (size_t b = 0; b < ids.size(); ++b) ids[b] = static_cast<int>(b);
+    const ValidationResult v =
+        ValidateHeldOutBeams(est.obs, sc.validation_dots, keys, sc.estimate_beams, ids, est.mle);
     const int n = static_cast<int>(v.details.size());
     ASSERT_GT(n, 5) << seed;
     ASSERT_EQ(v.joint_cov.rows(), 2 * n);
