@@ -214,6 +214,7 @@ SolveOutput SolveRecording(const dataset::Recording& input, const ImageLoader& i
   out.rms_baseline_deg = validation.rms_baseline_deg;
   out.rms_baseline_px = validation.rms_baseline_px;
   out.rms_normalised_validation = validation.rms_normalised;
+  out.residuals = WhitenedFitResiduals(estimate.obs, out.mle);
   finish_detections(&out);
   return out;
 }

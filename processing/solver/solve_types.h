@@ -134,7 +134,30 @@ struct ValidationDetail {
   dataset::ValidationRow row;       // proposed model
   dataset::ValidationRow baseline;  // baseline model (same beam and j)
   double predicted_sigma_px = 0;    // eq. 10: sqrt of the mean eigenvalue of the 2x2 covariance
-  double normalised_error = 0;      // sqrt(e^T C^-1 e / 2)
+  double normalised_error = 0;      // sqrt(e^T C^-1 e / 2), e = observed_px - predicted_px
+  // The dot on the image (px, (0, 0) at the centre of the top-left pixel): as measured, as the
+  // proposed model predicts it, and the 2x2 covariance C of their difference (eq. 10: the
+  // estimate's uncertainty through the prediction plus the dot's own, with its variance factor).
+  Eigen::Vector2d observed_px = Eigen::Vector2d::Zero();
+  Eigen::Vector2d predicted_px = Eigen::Vector2d::Zero();
+  Eigen::Matrix2d cov_px2 = Eigen::Matrix2d::Zero();
+  // The error whitened jointly with the other held-out dots: L^-1 e over the stacked errors of
+  // every dot, L L^T their joint covariance (with the cross terms of the beam, c2 and planes they
+  // share), in the order of SolveOutput::validation. It is this dot's error given the dots before
+  // it, in units of its conditional covariance: with honest covariances independent N(0, I2)
+  // across dots, which the marginal normalised errors are not (one beam error moves every dot
+  // of that beam alike).
+  Eigen::Vector2d joint_whitened = Eigen::Vector2d::Zero();
+};
+
+// One fitted residual whitened by the covariance the MLE used for it (its input covariance times
+// its family's covariance_scale): A (observed - predicted) with A^T A = C^-1, N(0, I2) up to the
+// leverage (each component's variance is 1 - h) when the covariances are honest.
+struct WhitenedResidual {
+  int family = 0;  // MleFamily
+  int group = 0;   // corner set (index into Observations::corners), sliding pose, mirror plane
+  Eigen::Vector2d observed_px = Eigen::Vector2d::Zero();
+  Eigen::Vector2d whitened = Eigen::Vector2d::Zero();
 };
 
 // A neutral or fast-only mirror plane (the planes that define {0}; not in mirror_planes.csv).
@@ -149,7 +172,8 @@ struct SolveOutput {
   std::vector<dataset::MirrorPlaneRow> planes;  // scan planes, ascending j
   std::vector<SupportPlane> support_planes;     // neutral, then fast-only by ascending j
   std::vector<dataset::BeamRow> beams;          // every beam (estimate and validate)
-  std::vector<ValidationDetail> validation;
+  std::vector<ValidationDetail> validation;     // by (beam id, j)
+  std::vector<WhitenedResidual> residuals;      // every fitted residual, by family, in fit order
   std::vector<DroppedFrame> dropped;
   std::vector<FrameDetection> detections;  // one per frame of session.yaml, in its order
   std::vector<std::string> notes;          // what the solver decided (associations, counts)

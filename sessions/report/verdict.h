@@ -34,18 +34,22 @@ double ChiSquare2Cdf(double x);
 
 // ------------------------------------------------------------------------- the rules
 
-// Held-out beam: sigma honesty. `normalised_errors` are validation_detail.csv's normalised_error,
-// sqrt(e^T C^-1 e / 2) per dot, so a dot's NEES is 2 ne^2 ~ chi2(2) when C is honest. The mean
-// NEES over N dots times N is chi2(2N): pass inside its two-sided 95 % interval, warn inside a
+// Held-out beam: sigma honesty. `normalised_errors` are sqrt(d^2 / 2) per dot for mutually
+// independent 2-D errors, d^2 = e^T C^-1 e, so a dot's NEES is 2 ne^2 ~ chi2(2) when C is
+// honest: the session report passes the jointly whitened errors (validation_dots.csv,
+// ne = |w| / sqrt 2), not validation_detail.csv's marginal normalised_error (the dots of one
+// beam share its error, so those are correlated and N of them are not N draws). The mean NEES
+// over N dots times N is chi2(2N): pass inside its two-sided 95 % interval, warn inside a
 // factor kNeesWarnFactor of 2 (sigmas off by less than sqrt of it), fail outside.
 inline constexpr double kNeesPassProbability = 0.95;
 inline constexpr double kNeesWarnFactor = 2.0;
 VerdictLine JudgeNees(const std::vector<double>& normalised_errors);
 
-// Held-out beam: the fraction of dots inside their k-sigma ellipse (k = 1, 2, 3) against
-// ChiSquare2Cdf(k^2). Pass when every fraction is within kCoveragePassSe binomial standard errors
-// sqrt(p (1 - p) / N) (plus half a dot, 0.5 / N) of its expectation, warn within kCoverageWarnSe,
-// fail beyond. The line's level is the worst of the three.
+// Held-out beam (the same independent errors): the fraction of dots inside their k-sigma
+// ellipse (k = 1, 2, 3) against ChiSquare2Cdf(k^2). Pass when every fraction is within
+// kCoveragePassSe binomial standard errors sqrt(p (1 - p) / N) (plus half a dot, 0.5 / N) of its
+// expectation, warn within kCoverageWarnSe, fail beyond. The line's level is the worst of the
+// three.
 inline constexpr double kCoveragePassSe = 2.0;
 inline constexpr double kCoverageWarnSe = 3.0;
 VerdictLine JudgeEllipseCoverage(const std::vector<double>& normalised_errors);

@@ -145,6 +145,8 @@ SolveStepResult RunSolveStep(const fs::path& dir, const solver::PipelineOptions&
     WriteValidationCsv(results / "validation.csv", rows);
     WriteValidationDetailCsv(results / "validation_detail.csv",
                              ValidationDetailRows(out.validation));
+    WriteValidationDotsCsv(results / "validation_dots.csv", ValidationDotRows(out.validation));
+    WriteResidualsCsv(results / "residuals.csv", out.residuals);
     r.summary = SummariseSolve(out, solve_s);
     WriteMirrorPosesSummary(results / "summary.json", r.summary);
     WriteDiagnostics(dir, out.detections, &r.warnings);

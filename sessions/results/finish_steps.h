@@ -43,12 +43,13 @@ struct SolveStepResult : StepReport {
 };
 // Reads `dir` (session.yaml, camera.yaml and the images, never hall/ or marg/), solves it with
 // `options` and writes results/: solve_options.yaml (first, the values used), mirror_planes.csv,
-// beams.csv, validation.csv, validation_detail.csv, summary.json "mirror_poses", detections.csv
-// and diagnostics/ (the annotated dropped and partly used frames; also when the solve fails with
-// a partial result). `options` must be valid (PipelineOptions::Validate()), else it is the error.
-// `on_image` (optional; called from the solver's image threads, so it must be thread-safe):
-// after each image read, the number of distinct images read so far and the session's frame
-// count (progress lines; later passes re-read images without adding to the count).
+// beams.csv, validation.csv, validation_detail.csv, validation_dots.csv, residuals.csv,
+// summary.json "mirror_poses", detections.csv and diagnostics/ (the annotated dropped and partly
+// used frames; also when the solve fails with a partial result). `options` must be valid
+// (PipelineOptions::Validate()), else it is the error. `on_image` (optional; called from the
+// solver's image threads, so it must be thread-safe): after each image read, the number of distinct
+// images read so far and the session's frame count (progress lines; later passes re-read images
+// without adding to the count).
 SolveStepResult RunSolveStep(
     const std::filesystem::path& dir, const solver::PipelineOptions& options,
     const std::function<void(size_t images_read, size_t images_total)>& on_image = {});

@@ -26,6 +26,11 @@ constexpr const char* kBeamsHeader = "beam,px,py,pz,vx,vy,vz";
 constexpr const char* kValidationHeader = "beam,j,err_px,err_deg";
 constexpr const char* kValidationDetailHeader =
     "beam,j,err_px,err_deg,baseline_err_px,baseline_err_deg,predicted_sigma_px,normalised_error";
+constexpr const char* kValidationDotsHeader =
+    "beam,j,observed_x_px,observed_y_px,predicted_x_px,predicted_y_px,cov_xx_px2,cov_xy_px2,"
+    "cov_yy_px2,joint_whitened_1,joint_whitened_2";
+constexpr const char* kResidualsHeader =
+    "family,group,observed_x_px,observed_y_px,whitened_1,whitened_2";
 constexpr const char* kHallPosesHeader = "mcu_time_us,t_s,alpha_deg,beta_deg,trans_mm";
 
 // One CSV row: integers first, then numbers in the shortest round-trip form.
@@ -190,6 +195,68 @@ void WriteValidationDetailCsv(const fs::path& file, const std::vector<Validation
     AppendRow(&out, {r.beam, r.j},
               {r.err_px, r.err_deg, r.baseline_err_px, r.baseline_err_deg, r.predicted_sigma_px,
                r.normalised_error});
+  common::WriteFileAtomically(file, out);
+}
+
+std::vector<ValidationDotRow> ValidationDotRows(
+    const std::vector<solver::ValidationDetail>& validation) {
+  std::vector<ValidationDotRow> rows;
+  for (const auto& v : validation)
+    rows.push_back(
+        {v.row.beam, v.row.j, v.observed_px, v.predicted_px, v.cov_px2, v.joint_whitened});
+  return rows;
+}
+
+std::vector<ValidationDotRow> ReadValidationDotsCsv(const fs::path& file) {
+  interchange::CsvReader csv(file, file.string(), {kValidationDotsHeader});
+  std::vector<ValidationDotRow> rows;
+  while (csv.Next()) {
+    ValidationDotRow r;
+    r.beam = csv.Int(0);
+    r.j = csv.Int(1);
+    r.observed_px = {csv.Double(2), csv.Double(3)};
+    r.predicted_px = {csv.Double(4), csv.Double(5)};
+    r.cov_px2 << csv.Double(6), csv.Double(7), csv.Double(7), csv.Double(8);
+    r.joint_whitened = {csv.Double(9), csv.Double(10)};
+    rows.push_back(r);
+  }
+  return rows;
+}
+
+void WriteValidationDotsCsv(const fs::path& file, const std::vector<ValidationDotRow>& rows) {
+  std::string out = std::string(kValidationDotsHeader) + "\n";
+  for (const auto& r : rows)
+    AppendRow(&out, {r.beam, r.j},
+              {r.observed_px.x(), r.observed_px.y(), r.predicted_px.x(), r.predicted_px.y(),
+               r.cov_px2(0, 0), r.cov_px2(0, 1), r.cov_px2(1, 1), r.joint_whitened.x(),
+               r.joint_whitened.y()});
+  common::WriteFileAtomically(file, out);
+}
+
+std::vector<solver::WhitenedResidual> ReadResidualsCsv(const fs::path& file) {
+  interchange::CsvReader csv(file, file.string(), {kResidualsHeader});
+  std::vector<solver::WhitenedResidual> rows;
+  while (csv.Next()) {
+    solver::WhitenedResidual r;
+    r.family = csv.Int(0);
+    if (r.family < 0 || r.family >= solver::kNumFamilies)
+      throw interchange::InterchangeError(file.string() + ":" + std::to_string(csv.line()) +
+                                          ": column 'family': " + std::to_string(r.family) +
+                                          " is not a residual family (0.." +
+                                          std::to_string(solver::kNumFamilies - 1) + ")");
+    r.group = csv.Int(1);
+    r.observed_px = {csv.Double(2), csv.Double(3)};
+    r.whitened = {csv.Double(4), csv.Double(5)};
+    rows.push_back(r);
+  }
+  return rows;
+}
+
+void WriteResidualsCsv(const fs::path& file, const std::vector<solver::WhitenedResidual>& rows) {
+  std::string out = std::string(kResidualsHeader) + "\n";
+  for (const auto& r : rows)
+    AppendRow(&out, {r.family, r.group},
+              {r.observed_px.x(), r.observed_px.y(), r.whitened.x(), r.whitened.y()});
   common::WriteFileAtomically(file, out);
 }
 

@@ -65,6 +65,33 @@ std::vector<ValidationDetailRow> ReadValidationDetailCsv(const std::filesystem::
 void WriteValidationDetailCsv(const std::filesystem::path& file,
                               const std::vector<ValidationDetailRow>& rows);
 
+// results/validation_dots.csv (native): per held-out dot, in validation_detail.csv's order, where
+// it is on the image (px, (0, 0) at the centre of the top-left pixel) as measured and as the
+// proposed model predicts it, the 2x2 covariance of their difference (eq. 10, px^2) and the error
+// whitened jointly over every held-out dot (solver::ValidationDetail::joint_whitened).
+struct ValidationDotRow {
+  int beam = 0;
+  int j = 0;
+  Eigen::Vector2d observed_px = Eigen::Vector2d::Zero();
+  Eigen::Vector2d predicted_px = Eigen::Vector2d::Zero();
+  Eigen::Matrix2d cov_px2 = Eigen::Matrix2d::Zero();
+  Eigen::Vector2d joint_whitened = Eigen::Vector2d::Zero();
+};
+std::vector<ValidationDotRow> ValidationDotRows(
+    const std::vector<solver::ValidationDetail>& validation);
+std::vector<ValidationDotRow> ReadValidationDotsCsv(const std::filesystem::path& file);
+void WriteValidationDotsCsv(const std::filesystem::path& file,
+                            const std::vector<ValidationDotRow>& rows);
+
+// results/residuals.csv (native): every residual the MLE fitted, whitened by the covariance it
+// used (solver::WhitenedResidual): family (solver::MleFamily: 0 corners_c1_world,
+// 1 corners_c1_sliding, 2 corners_c2_world, 3 sliding_dots, 4 reflected_dots,
+// 5 reflected_dots_near_edge), group (corner set, sliding pose or mirror plane), the observed
+// pixel and the two whitened components.
+std::vector<solver::WhitenedResidual> ReadResidualsCsv(const std::filesystem::path& file);
+void WriteResidualsCsv(const std::filesystem::path& file,
+                       const std::vector<solver::WhitenedResidual>& rows);
+
 // ------------------------------------------------------------------- summary.json mirror_poses
 
 // The solver's figures under summary.json's "mirror_poses" key (other producers own other keys).

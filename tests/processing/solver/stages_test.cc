@@ -2,9 +2,11 @@
 // inputs built here: no images except for the exposure averaging.
 #include <gtest/gtest.h>
 
+#include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
 #include <Eigen/Geometry>
 #include <algorithm>
+#include <cstdio>
 #include <opencv2/core.hpp>
 #include <random>
 
@@ -471,6 +473,86 @@ TEST(EstimateStage, MleRecoversTheSyntheticTruthAndHomeFrameHasItsConvention) {
   EXPECT_LT(v.rms_px, 1.0);
   EXPECT_GT(v.rms_normalised, 0.2);  // errors as large as their predicted covariance says
   EXPECT_LT(v.rms_normalised, 3.0);
+}
+
+// The held-out dots of one scene share the estimate's errors (their beam's above all), so their
+// marginal normalised errors are correlated; the joint whitening L^-1 e (L L^T the joint
+// covariance) gives independent N(0, 1) components when the covariances are honest. Over
+// synthetic scenes with noise drawn from the stated covariances: the pooled whitened components
+// are standard normal, their per-dot squared norms chi2(2) (39.3 / 86.5 / 98.9 % inside 1, 2, 3
+// sigma), consecutive dots uncorrelated, and the joint covariance's diagonal blocks are eq. 10's.
+TEST(ValidationStage, JointWhiteningOfHeldOutDotsIsStandardNormalAndIndependent) {
+  double sum_w2 = 0, lag_joint = 0, lag_marginal = 0;
+  int components = 0, dots = 0, pairs = 0;
+  int inside[3] = {0, 0, 0};
+  for (uint64_t seed = 1; seed <= 48; ++seed) {
+    SyntheticSceneOptions o = SmallScene();
+    o.seed = seed;
+    o.num_planes = 10;
+    if (seed % 2 == 0) {
+      // Two held-out beams: their dots on one plane share it (the plane's own covariance).
+      o.beam_azimuth_deg.push_back(-8.0);
+      o.beam_elevation_deg.push_back(-5.0);
+    }
+    const SyntheticScene sc = MakeSyntheticScene(o);
+    std::vector<std::vector<char>> clear;
+    for (const auto& c : sc.obs.corners) clear.emplace_back(c.px.size(), 1);
+    MleOptions mo;
+    mo.estimate_variance_factors = false;  // the stated covariances are the true ones
+    const MleEstimate est = EstimateMle(sc.obs, clear, mo);
+    ASSERT_TRUE(est.mle.usable) << seed;
+    std::vector<std::pair<Step2Kind, int>> keys;
+    for (int p = 0; p < sc.obs.num_planes; ++p) keys.emplace_back(Step2Kind::kScan, p);
+    std::vector<int> ids(sc.truth.beams.size());
+    for (size_t b = 0; b < ids.size(); ++b) ids[b] = static_cast<int>(b);
+    const ValidationResult v =
+        ValidateHeldOutBeams(est.obs, sc.validation_dots, keys, sc.estimate_beams, ids, est.mle);
+    const int n = static_cast<int>(v.details.size());
+    ASSERT_GT(n, 5) << seed;
+    ASSERT_EQ(v.joint_cov.rows(), 2 * n);
+    double nees = 0;
+    for (int i = 0; i < n; ++i) {
+      const ValidationDetail& d = v.details[i];
+      EXPECT_LT((v.joint_cov.block<2, 2>(2 * i, 2 * i) - d.cov_px2).norm(), 1e-9 * d.cov_px2.norm())
+          << seed;
+      const Eigen::Vector2d e = d.observed_px - d.predicted_px;
+      EXPECT_NEAR(e.norm(), d.row.err_px, 1e-12);
+      EXPECT_NEAR(std::sqrt(e.dot(d.cov_px2.inverse() * e) / 2), d.normalised_error, 1e-9);
+      const Eigen::Vector2d& w = d.joint_whitened;
+      nees += w.squaredNorm();
+      sum_w2 += w.squaredNorm();
+      components += 2;
+      ++dots;
+      for (int k = 0; k < 3; ++k) inside[k] += w.squaredNorm() <= (k + 1) * (k + 1);
+      if (i > 0 && d.row.beam == v.details[i - 1].row.beam) {
+        // Consecutive dots of one beam: products of their whitened components (mean 0 when
+        // independent), and of their marginally whitened errors (C_i^-1/2 e_i).
+        const ValidationDetail& p = v.details[i - 1];
+        lag_joint += w.dot(p.joint_whitened) / 2;
+        const Eigen::Vector2d mi = d.cov_px2.llt().matrixL().solve(d.observed_px - d.predicted_px);
+        const Eigen::Vector2d mp = p.cov_px2.llt().matrixL().solve(p.observed_px - p.predicted_px);
+        lag_marginal += mi.dot(mp) / 2;
+        ++pairs;
+      }
+    }
+    EXPECT_NEAR(nees, v.joint_nees, 1e-9 * nees);
+  }
+  // E[w^2] = 1, sd of the mean sqrt(2 / components).
+  EXPECT_NEAR(sum_w2 / components, 1.0, 3 * std::sqrt(2.0 / components)) << components;
+  for (int k = 0; k < 3; ++k) {
+    const double p = 1 - std::exp(-(k + 1) * (k + 1) / 2.0);
+    EXPECT_NEAR(static_cast<double>(inside[k]) / dots, p, 3 * std::sqrt(p * (1 - p) / dots))
+        << (k + 1) << " sigma, " << dots << " dots";
+  }
+  // Correlation of consecutive dots: none once whitened jointly (sd 1 / sqrt(pairs)); clearly
+  // positive between the marginal ones (the shared beam error).
+  EXPECT_LT(std::abs(lag_joint / pairs), 3 / std::sqrt(static_cast<double>(pairs))) << pairs;
+  EXPECT_GT(lag_marginal / pairs, 0.3) << pairs;
+  std::printf(
+      "held-out dots %d, pairs %d: mean w^2 %.3f, inside 1/2/3 sigma %.3f %.3f %.3f, "
+      "lag correlation joint %.3f, marginal %.3f\n",
+      dots, pairs, sum_w2 / components, double(inside[0]) / dots, double(inside[1]) / dots,
+      double(inside[2]) / dots, lag_joint / pairs, lag_marginal / pairs);
 }
 
 }  // namespace

@@ -9,7 +9,8 @@ recordings), regenerates its report with `msmcal report` (the session's provenan
 a one-point sweep folder around it and writes the sweep report, then opens both reports in
 headless Chromium (selenium + /usr/bin/chromedriver) and checks: no console error, no network
 request, the verdict first and non-empty, every plot canvas drawn (non-blank pixels, data in each
-chart), the HTML tables, the provenance with the commit the binary was built from, zoom by drag
+chart), the HTML tables, the held-out residual vectors drawn with their scale, the whitened
+residuals' histogram, the provenance with the commit the binary was built from, zoom by drag
 and reset by double-click, the sweep report's link to the point's report. Screenshots go to
 OUT_DIR/report.png and OUT_DIR/sweep_report.png.
 
@@ -151,6 +152,41 @@ def check_page(driver, path, screenshot, expect_tables, min_plots):
     return canvases
 
 
+# The held-out residual vectors: one segment (2 points, then a gap) per held-out dot, the scale
+# in the legend and the title, the image frame's y axis downwards, and the vectors' own pixels
+# drawn in their colour (not only the outline and the axes).
+VECTORS_STATE = """
+const c = window.msmcalCharts['plot-validation-vectors'];
+const d = c.data.datasets.find(s => s.label.startsWith('measured - predicted'));
+const ctx = c.canvas.getContext('2d');
+const img = ctx.getImageData(0, 0, c.canvas.width, c.canvas.height).data;
+let red = 0;
+for (let i = 0; i < img.length; i += 4) {
+  if (img[i + 3] > 0 && img[i] > 150 && img[i + 1] < 90 && img[i + 2] < 90) red++;
+}
+return {label: d ? d.label : null, points: d ? d.data.filter(p => p.y !== null).length : 0,
+        gaps: d ? d.data.filter(p => p.y === null).length : 0, red: red,
+        title: c.options.plugins.title.text, reversed: c.options.scales.y.reverse};
+"""
+
+
+def check_vectors(driver, canvases):
+    driver.execute_script("document.getElementById('plot-validation-vectors')"
+                          ".scrollIntoView({block: 'center'})")
+    v = driver.execute_script(VECTORS_STATE)
+    import re
+    scale = re.search(r"x(\d[\d.e+]*)", v["label"] or "")
+    if not v["label"] or v["points"] < 2 or v["points"] != 2 * v["gaps"] or not scale:
+        fail("held-out residual vectors: no segments or no scale in the legend: %s" % v)
+    if ("x" + scale.group(1)) not in v["title"] or not v["reversed"]:
+        fail("held-out residual vectors: title without the scale or y axis not downwards: %s" % v)
+    if v["red"] < 20:
+        fail("held-out residual vectors: the vectors are not drawn (%d red pixels): %s"
+             % (v["red"], v))
+    print("held-out residual vectors: %d segments, scale %s, %d vector pixels" % (
+        v["gaps"], scale.group(1), v["red"]), flush=True)
+
+
 def check_zoom(driver, chart_id):
     """Drag a rectangle on the chart: its axes narrow; double-click: they come back."""
     from selenium.webdriver.common.action_chains import ActionChains
@@ -226,9 +262,11 @@ def main():
         ids = {c["id"] for c in canvases}
         for needed in ("plot-scan-pattern", "plot-pose-alpha", "plot-normalised-errors",
                        "plot-hall-fit-alpha", "plot-delta-t-cost", "plot-clock-edges",
-                       "plot-residual-families"):
+                       "plot-residual-families", "plot-whitened-histogram",
+                       "plot-validation-vectors"):
             if needed not in ids:
                 fail("plot %s missing (have %s)" % (needed, sorted(ids)))
+        check_vectors(driver, canvases)
         check_zoom(driver, "plot-pose-alpha")
 
         # A sweep folder around the session: one point, the demo's folder.

@@ -116,6 +116,49 @@ TEST(ResultsCsv, ValidationDetailRoundTripFromTheSolversRows) {
   EXPECT_EQ(back[0].normalised_error, 1.25);
 }
 
+TEST(ResultsCsv, ValidationDotsRoundTripFromTheSolversRows) {
+  TempDir dir;
+  solver::ValidationDetail v;
+  v.row = {5, 9, 0.125, 0.01};
+  v.observed_px = {1200.5, 800.25};
+  v.predicted_px = {1200.375, 800.5};
+  v.cov_px2 << 0.0625, -0.01, -0.01, 0.03125;
+  v.joint_whitened = {0.75, -1.5};
+  const fs::path file = dir.path() / "validation_dots.csv";
+  WriteValidationDotsCsv(file, ValidationDotRows({v}));
+  EXPECT_EQ(Slurp(file),
+            "beam,j,observed_x_px,observed_y_px,predicted_x_px,predicted_y_px,cov_xx_px2,"
+            "cov_xy_px2,cov_yy_px2,joint_whitened_1,joint_whitened_2\n"
+            "5,9,1200.5,800.25,1200.375,800.5,0.0625,-0.01,0.03125,0.75,-1.5\n");
+  const auto back = ReadValidationDotsCsv(file);
+  ASSERT_EQ(back.size(), 1u);
+  EXPECT_EQ(back[0].beam, 5);
+  EXPECT_EQ(back[0].j, 9);
+  EXPECT_EQ(back[0].observed_px, v.observed_px);
+  EXPECT_EQ(back[0].predicted_px, v.predicted_px);
+  EXPECT_EQ(back[0].cov_px2, v.cov_px2);  // symmetric: the off-diagonal written once
+  EXPECT_EQ(back[0].joint_whitened, v.joint_whitened);
+}
+
+TEST(ResultsCsv, ResidualsRoundTripAndRefuseAnUnknownFamily) {
+  TempDir dir;
+  const fs::path file = dir.path() / "residuals.csv";
+  WriteResidualsCsv(file, {{solver::kCornersC2World, 3, {10.5, 20.25}, {0.5, -1.25}},
+                           {solver::kReflectedDots, 7, {1000, 900}, {2, 0.125}}});
+  EXPECT_EQ(Slurp(file),
+            "family,group,observed_x_px,observed_y_px,whitened_1,whitened_2\n"
+            "2,3,10.5,20.25,0.5,-1.25\n4,7,1000,900,2,0.125\n");
+  const auto back = ReadResidualsCsv(file);
+  ASSERT_EQ(back.size(), 2u);
+  EXPECT_EQ(back[1].family, solver::kReflectedDots);
+  EXPECT_EQ(back[1].group, 7);
+  EXPECT_EQ(back[1].observed_px, Eigen::Vector2d(1000, 900));
+  EXPECT_EQ(back[1].whitened, Eigen::Vector2d(2, 0.125));
+  Spit(file, "family,group,observed_x_px,observed_y_px,whitened_1,whitened_2\n9,0,0,0,0,0\n");
+  EXPECT_EQ(ErrorOf([&] { ReadResidualsCsv(file); }),
+            file.string() + ":2: column 'family': 9 is not a residual family (0..5)");
+}
+
 TEST(ResultsCsv, HallPosesRoundTrip) {
   TempDir dir;
   const fs::path file = dir.path() / "hall_poses.csv";
