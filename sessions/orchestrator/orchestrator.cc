@@ -20,6 +20,7 @@
 #include "drivers/generator/function_generator.h"
 #include "drivers/generator/rig_generators.h"
 #include "drivers/generator/safe_state.h"
+#include "drivers/generator/watchdog.h"
 #include "processing/signal/rig_signals.h"
 #include "sessions/interchange/interchange_io.h"
 #include "sessions/store/session_store.h"
@@ -771,6 +772,21 @@ SessionResult RunSession(const OrchestratorOptions& options, const dataset::Reco
   // for now.
   set_step(kStepRigCheck, store::StepState::kRunning);
   OpenInstruments inst;
+  // A signal in the rig check: every generator opened so far (or being opened) off through the
+  // driver's registry, then the line in the session log (the command's OpenGeneratorsGuard, if
+  // any, says it on stderr). Silent once the session's guard below takes over.
+  std::atomic<bool> in_rig_check{true};
+  gen::SafeStateGuard rig_check_guard([&] {
+    if (!in_rig_check || gen::SafeStateGuard::HandlingSignal() == 0) return;
+    const std::vector<gen::OpenGeneratorOutcome> off = gen::SafeStateOfOpenGenerators();
+    bool all = true;
+    for (const auto& o : off) all = all && o.confirmed;
+    if (!all) gen::SafeStateGuard::ReportUnconfirmed();
+    log.Line("interrupted (signal) in the rig check: generator outputs " +
+                 (off.empty() ? std::string("untouched (no generator connection open yet)")
+                              : gen::FormatOpenGeneratorOutcomes(off)),
+             "error");
+  });
   std::string background_device = options.mcu.device;
   const bool ask_background_later = !background_device.empty();
   if (!ask_background_later) {
@@ -794,6 +810,7 @@ SessionResult RunSession(const OrchestratorOptions& options, const dataset::Reco
   }
   set_step(kStepRigCheck, store::StepState::kDone);
   log.Line("rig check passed");
+  in_rig_check = false;
 
   // From here on outputs may be on: safe state on signal, exception and exit; the watchdog for
   // SIGKILL and crashes, stood down once the outputs are confirmed off.
@@ -815,9 +832,15 @@ SessionResult RunSession(const OrchestratorOptions& options, const dataset::Reco
     } catch (...) {  // an observer never changes the safe state's path
     }
   };
+  // Not confirmed by msmcal itself: the watchdog is asked to act now (docs/watchdog.md), and the
+  // session ends with SafeStateNotConfirmed below (signal: the guard's exit status).
+  std::optional<gen::WatchdogHandOver> handed_over;
+  std::mutex safe_state_mu;  // the main thread's and the signal watcher's calls
   auto safe_state = [&] {
+    std::lock_guard<std::mutex> lock(safe_state_mu);
     const bool ok = rig.SafeState();
     if (ok && watchdog) watchdog->StandDown();
+    if (!ok && watchdog && !handed_over) handed_over = gen::HandOverToWatchdog(*watchdog);
     log.SetGeneratorEpoch(std::nullopt);
     SessionEvent e;
     e.kind = SessionEvent::Kind::kSafeState;
@@ -825,6 +848,7 @@ SessionResult RunSession(const OrchestratorOptions& options, const dataset::Reco
     e.text = ok ? "safe state: generator outputs off (confirmed)"
                 : "safe state: outputs off NOT confirmed by both generators";
     log.Line(e.text, ok ? "info" : "error");
+    if (handed_over) log.Line(handed_over->text, "error");
     result.safe_state_confirmed = ok;
     emit(e);
     report_rig(/*outputs_on=*/!ok);
@@ -834,8 +858,13 @@ SessionResult RunSession(const OrchestratorOptions& options, const dataset::Reco
   // On a signal: outputs off first, then the log line (the log may be a closed pipe).
   gen::SafeStateGuard guard([&] {
     safe_state();
-    if (!result.safe_state_confirmed) gen::SafeStateGuard::ReportUnconfirmed();
-    log.Line("interrupted (signal): generator outputs switched off", "error");
+    if (handed_over)
+      gen::SafeStateGuard::ReportHandedOver(handed_over->confirmed, handed_over->text);
+    else if (!result.safe_state_confirmed)
+      gen::SafeStateGuard::ReportUnconfirmed();
+    log.Line(handed_over ? "interrupted (signal): generator outputs left to the watchdog (above)"
+                         : "interrupted (signal): generator outputs switched off",
+             "error");
   });
   int accepted_total = 0;
   try {
@@ -1144,13 +1173,18 @@ SessionResult RunSession(const OrchestratorOptions& options, const dataset::Reco
     inst.cam->Stop();
   } catch (const std::exception& e) {
     log.Line(std::string("ERROR: ") + e.what(), "error");
-    if (inst.cam) inst.cam->Stop();
+    // Outputs off first: stopping a camera that is gone can take seconds (its control times out).
     safe_state();
     guard.Disarm();  // outputs are off already
+    if (inst.cam) inst.cam->Stop();
+    if (handed_over)
+      throw gen::SafeStateNotConfirmed(handed_over->exit_status,
+                                       std::string(e.what()) + "; then " + handed_over->text);
     throw;
   }
   safe_state();
   guard.Disarm();
+  if (handed_over) throw gen::SafeStateNotConfirmed(handed_over->exit_status, handed_over->text);
 
   // session.yaml last: a folder with a session.yaml is complete. The frames kept are those
   // recorded as accepted (before a resume or now), in plan order.
