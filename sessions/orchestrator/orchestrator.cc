@@ -1118,8 +1118,13 @@ SessionResult RunSession(const OrchestratorOptions& options, const dataset::Reco
       }
       play(BackgroundSignals(plan), "Hall background");
       emit(HallStarted("background", background_device, log));
-      const auto r = RecordHall(*inst.mcu, out / "hall" / "background.csv", options,
-                                options.background_seconds, nullptr);
+      const auto r = [&] {
+        // Nothing else takes frames during the background recording: the live view keeps its
+        // camera image (issue 19; the view downscales and paces it, LiveViewOptions).
+        LivePump pump(inst.cam.get(), options.on_live_frame, 0, 0);
+        return RecordHall(*inst.mcu, out / "hall" / "background.csv", options,
+                          options.background_seconds, nullptr);
+      }();
       result.background_readings = r.counts.readings_delivered;
       result.background_edges = r.counts.edges_delivered;
       hall_done("background", r);
