@@ -24,6 +24,7 @@
 #include "app/command_registry.h"
 #include "app/session_flow.h"
 #include "app/web_ui.h"
+#include "drivers/generator/safe_state.h"
 #include "mocks/rig/sim_options.h"
 #include "sessions/interchange/interchange_io.h"
 #include "sessions/orchestrator/orchestrator.h"
@@ -44,9 +45,9 @@ struct DemoArgs {
   std::string camera_address = "127.0.0.1";
   std::string store;  // session store folder to import the finished session into (optional)
   bool guided = false;
-  std::vector<int> generator_ports;     // --generator-ports P1,P2 (docs/fault-campaign.md)
+  std::vector<int> generator_ports;      // --generator-ports P1,P2 (docs/fault-campaign.md)
   std::vector<std::string> mock_faults;  // --mock-fault
-  WebUiArgs web;  // --ui web[:PORT], --ui-bind (with --guided)
+  WebUiArgs web;                         // --ui web[:PORT], --ui-bind (with --guided)
 };
 
 // --guided: a ConsoleOperator on stdin/stdout in front of the simulated world (with the
@@ -158,7 +159,10 @@ void AddDemoCommands(CLI::App& app) {
                  "Prompt for every rig set-up on this terminal (Enter / r / q), print live gate "
                  "figures and write annotated previews to DIR/previews");
   AddWebUiOptions(demo, &args->web);
-  demo->callback([args] { RunDemo(*args); });
+  demo->callback([args] {
+    const gen::OpenGeneratorsGuard signals;  // from the start: docs/watchdog.md
+    RunDemo(*args);
+  });
 }
 
 }  // namespace

@@ -89,10 +89,13 @@ void Apply(const GenArgs& args) {
                                      msmcal::gen::WatchdogConfigFor(config, args.watchdog_log));
   }
   msmcal::gen::SafeStateGuard guard([&rig, &watchdog] {
-    if (!rig.SafeState()) {
-      msmcal::gen::SafeStateGuard::ReportUnconfirmed();  // the watchdog tries again at exit
-    } else if (watchdog) {
-      watchdog->StandDown();
+    if (rig.SafeState()) {
+      if (watchdog) watchdog->StandDown();
+    } else if (watchdog) {  // not confirmed by this process: the watchdog acts now
+      const msmcal::gen::WatchdogHandOver h = msmcal::gen::HandOverToWatchdog(*watchdog);
+      msmcal::gen::SafeStateGuard::ReportHandedOver(h.confirmed, h.text);
+    } else {
+      msmcal::gen::SafeStateGuard::ReportUnconfirmed();
     }
   });
   rig.Apply(plan);
@@ -145,7 +148,10 @@ void AddGenCommands(CLI::App& app) {
   auto* identify = gen->add_subcommand(
       "identify", "Print identity, options and reference lock of both generators");
   rig_option(identify);
-  identify->callback([args] { Identify(*args); });
+  identify->callback([args] {
+    const msmcal::gen::OpenGeneratorsGuard signals;  // from the start: docs/watchdog.md
+    Identify(*args);
+  });
 
   auto* apply = gen->add_subcommand(
       "apply",
@@ -158,11 +164,17 @@ void AddGenCommands(CLI::App& app) {
   apply->add_option("--watchdog-log", args->watchdog_log,
                     "File the watchdog appends its report to if this process is killed "
                     "(default: stderr only)");
-  apply->callback([args] { Apply(*args); });
+  apply->callback([args] {
+    const msmcal::gen::OpenGeneratorsGuard signals;  // from the start: docs/watchdog.md
+    Apply(*args);
+  });
 
   auto* off = gen->add_subcommand("off", "Turn every generator output off");
   rig_option(off);
-  off->callback([args] { Off(*args); });
+  off->callback([args] {
+    const msmcal::gen::OpenGeneratorsGuard signals;  // from the start: docs/watchdog.md
+    Off(*args);
+  });
 }
 
 struct MockArgs {

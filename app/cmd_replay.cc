@@ -18,6 +18,7 @@
 
 #include "app/command_registry.h"
 #include "app/session_flow.h"
+#include "drivers/generator/safe_state.h"
 #include "sessions/orchestrator/orchestrator.h"
 #include "sessions/replay/session_compare.h"
 #include "simulation/replay/replay_rig.h"
@@ -137,7 +138,10 @@ void AddReplayCommands(CLI::App& app) {
                   "Solver threads (use the original's: `msmcal demo` solves with 2)");
   cmd->add_option("--camera-address", args->camera_address,
                   "Address the mock GigE Vision camera serves on (port 3956)");
-  cmd->callback([args] { RunReplay(*args); });
+  cmd->callback([args] {
+    const gen::OpenGeneratorsGuard signals;  // from the start: docs/watchdog.md
+    RunReplay(*args);
+  });
 }
 
 }  // namespace

@@ -14,6 +14,7 @@
 
 #include "app/command_registry.h"
 #include "app/session_flow.h"
+#include "drivers/generator/safe_state.h"
 #include "mocks/rig/sim_options.h"
 #include "sessions/interchange/interchange_io.h"
 #include "sessions/orchestrator/orchestrator.h"
@@ -97,7 +98,10 @@ void AddResumeCommands(CLI::App& app) {
   resume->add_flag("--guided", args->guided,
                    "Demo sessions: prompt on this terminal for every set-up (lab sessions always "
                    "do)");
-  resume->callback([args] { RunResume(*args); });
+  resume->callback([args] {
+    const gen::OpenGeneratorsGuard signals;  // from the start: docs/watchdog.md
+    RunResume(*args);
+  });
 }
 
 }  // namespace

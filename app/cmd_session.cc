@@ -33,6 +33,7 @@
 #include "app/session_flow.h"
 #include "app/web_ui.h"
 #include "drivers/generator/rig_config.h"
+#include "drivers/generator/safe_state.h"
 #include "drivers/hall_mcu/hall_mcu_config.h"
 #include "sessions/interchange/interchange_io.h"
 #include "sessions/orchestrator/orchestrator.h"
@@ -185,7 +186,10 @@ void AddSessionCommands(CLI::App& app) {
   check->add_option("--camera", args->camera,
                     "Camera: GigE Vision IP address, or V4L2 device (default: the rig file's)");
   check->add_option("--mcu", args->mcu, "Hall MCU serial device (default: the rig file's)");
-  check->callback([args] { RunSessionCheck(*args); });
+  check->callback([args] {
+    const gen::OpenGeneratorsGuard signals;  // from the start: docs/watchdog.md
+    RunSessionCheck(*args);
+  });
 
   auto run_args = std::make_shared<SessionRunArgs>();
   auto* run = session->add_subcommand(
@@ -213,7 +217,10 @@ void AddSessionCommands(CLI::App& app) {
                 "Check the plan against the rig's limits and the free disk, print duration, "
                 "prompts and disk needed; create nothing, contact no instrument");
   AddWebUiOptions(run, &run_args->web);
-  run->callback([run_args] { RunSessionRun(*run_args); });
+  run->callback([run_args] {
+    const gen::OpenGeneratorsGuard signals;  // from the start: docs/watchdog.md
+    RunSessionRun(*run_args);
+  });
 }
 
 }  // namespace

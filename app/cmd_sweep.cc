@@ -23,6 +23,7 @@
 
 #include "app/command_registry.h"
 #include "app/session_flow.h"
+#include "drivers/generator/safe_state.h"
 #include "mocks/rig/rig_simulator.h"
 #include "mocks/rig/truth_io.h"
 #include "sessions/interchange/interchange_io.h"
@@ -347,7 +348,10 @@ void AddSweepCommands(CLI::App& app) {
                   "A rig sweep: the session folder whose step 1 every point reuses");
   cmd->add_option("--operator", args->operator_spec,
                   "A rig sweep: hook:CMD receives each point's truth request (nobody at the rig)");
-  cmd->callback([args] { RunSweepCommand(*args); });
+  cmd->callback([args] {
+    const gen::OpenGeneratorsGuard signals;  // from the start: docs/watchdog.md
+    RunSweepCommand(*args);
+  });
 }
 
 }  // namespace

@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "app/command_registry.h"
+#include "drivers/generator/safe_state.h"
 
 namespace msmcal::app {
 namespace {
@@ -53,6 +54,10 @@ int main(int argc, char** argv) {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
     return app.exit(e);
+  } catch (const msmcal::gen::SafeStateNotConfirmed& e) {
+    // Loud, with its own status (docs/watchdog.md): 76 the watchdog confirmed, 75 nobody did.
+    spdlog::critical("{}", e.what());
+    return e.exit_status();
   } catch (const std::exception& e) {
     spdlog::error("{}", e.what());
     return 1;

@@ -113,6 +113,10 @@ class FunctionGenerator {
   // Every output off. Never throws; reconnects first if the connection was lost. Returns true
   // when the instrument confirmed (both OUTPut? replies 0).
   virtual bool SafeState() noexcept = 0;
+  // Closes the connection (thread-safe like SafeState(); waits for the exchange in flight), so
+  // that an instrument serving one connection at a time lets another client in (the watchdog,
+  // docs/watchdog.md). Later calls throw scpi::ScpiError(kNotConnected); SafeState() reconnects.
+  virtual void Disconnect() noexcept = 0;
 };
 
 struct Keysight33500Options {

@@ -7,6 +7,7 @@
 #include <sstream>
 
 #include "drivers/generator/function_generator.h"
+#include "drivers/generator/safe_state.h"
 #include "drivers/scpi/scpi_text.h"
 
 namespace msmcal::gen {
@@ -177,7 +178,9 @@ namespace {
 class Keysight33500 final : public FunctionGenerator {
  public:
   Keysight33500(const Keysight33500Options& o, scpi::TranscriptSink transcript)
-      : options_(o), client_(o.link) {
+      : options_(o),
+        client_(o.link),
+        registration_(this, o.name + " (" + client_.Endpoint() + ")") {
     if (transcript) client_.SetTranscriptSink(std::move(transcript));
   }
 
@@ -338,6 +341,13 @@ class Keysight33500 final : public FunctionGenerator {
     return false;
   }
 
+  void Disconnect() noexcept override {
+    try {
+      client_.Close();
+    } catch (...) {
+    }
+  }
+
  private:
   std::string Who() const { return "'" + options_.name + "' at " + client_.Endpoint(); }
 
@@ -364,6 +374,9 @@ class Keysight33500 final : public FunctionGenerator {
   Keysight33500Options options_;
   scpi::ScpiClient client_;
   scpi::Identity identity_;
+  // Last: registered once the client exists, unregistered before anything else is destroyed (a
+  // signal's safe state may call SafeState() from another thread until then).
+  OpenGeneratorRegistration registration_;
 };
 
 }  // namespace

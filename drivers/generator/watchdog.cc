@@ -26,6 +26,8 @@ namespace msmcal::gen {
 namespace {
 
 constexpr char kStandDownByte = 'S';
+// The parent is alive but its own safe state was not confirmed: act now (Watchdog::ActNow).
+constexpr char kActNowByte = 'F';
 constexpr char kArmedByte = 'A';
 constexpr int kArmTimeoutMs = 5000;
 constexpr int kStandDownTimeoutMs = 3000;
@@ -255,11 +257,12 @@ std::vector<WatchdogOutcome> SwitchOutputsOff(const WatchdogConfig& config) {
   return out;
 }
 
-std::string FormatWatchdogReport(const WatchdogOutcome& o, pid_t parent_pid) {
+std::string FormatWatchdogReport(const WatchdogOutcome& o, pid_t parent_pid, bool asked) {
   std::ostringstream os;
   os << "[watchdog " << UtcNow() << "] process " << parent_pid
-     << " ended without standing the watchdog down: " << o.generator.name << " ("
-     << o.generator.host << ":" << o.generator.port << ") ";
+     << (asked ? " asked the watchdog to act (its own safe state was not confirmed): "
+               : " ended without standing the watchdog down: ")
+     << o.generator.name << " (" << o.generator.host << ":" << o.generator.port << ") ";
   if (o.confirmed) {
     os << "outputs off, confirmed (OUTP1 OFF;:OUTP2 OFF, OUTP1?;:OUTP2? -> 0;0)";
   } else {
@@ -286,6 +289,7 @@ int RunWatchdog(const WatchdogInvocation& inv) {
   [[maybe_unused]] const ssize_t w = write(inv.ready_fd, &armed, 1);
   close(inv.ready_fd);
 
+  bool asked = false;  // the parent, alive, asked us to act (kActNowByte)
   while (!gone) {
     pollfd p[2] = {{inv.control_fd, POLLIN, 0}, {pidfd, POLLIN, 0}};
     const int n = poll(p, 2, -1);
@@ -303,6 +307,10 @@ int RunWatchdog(const WatchdogInvocation& inv) {
       if (pidfd >= 0) close(pidfd);
       return kWatchdogStoodDown;
     }
+    if (r == 1 && b == kActNowByte) {
+      asked = true;
+      break;
+    }
     if (r == 0) gone = true;                                               // EOF: write end closed
     if (r < 0 && errno != EAGAIN && errno != EINTR) gone = true;           // broken pipe
     if (r < 0 && errno == EAGAIN && (p[1].revents & POLLIN)) gone = true;  // parent exited
@@ -315,7 +323,7 @@ int RunWatchdog(const WatchdogInvocation& inv) {
   std::string report;
   for (const WatchdogOutcome& o : outcomes) {
     all = all && o.confirmed;
-    report += FormatWatchdogReport(o, inv.parent_pid) + "\n";
+    report += FormatWatchdogReport(o, inv.parent_pid, asked) + "\n";
   }
   if (!inv.config.log_path.empty()) {
     const int fd =
@@ -447,6 +455,34 @@ int Watchdog::StandDown() {
     life_fd_ = -1;
   }
   return Reap(kStandDownTimeoutMs);
+}
+
+int Watchdog::ActNow() {
+  std::lock_guard lock(mu_);
+  if (life_fd_ >= 0) {
+    WriteByteNoSigpipe(life_fd_, kActNowByte);
+    close(life_fd_);
+    life_fd_ = -1;
+  }
+  return Reap(fire_wait_ms_);
+}
+
+WatchdogHandOver HandOverToWatchdog(Watchdog& watchdog) {
+  // Our connections closed first: an instrument serving one connection at a time (the strictest
+  // 33500, docs/watchdog.md) would not serve the watchdog's while ours is open.
+  DisconnectOpenGenerators();
+  WatchdogHandOver h;
+  h.watchdog_status = watchdog.ActNow();
+  h.confirmed = h.watchdog_status == kWatchdogFiredConfirmed;
+  h.exit_status = h.confirmed ? kExitSafeStateByWatchdog : kExitSafeStateUnconfirmed;
+  const std::string who = "the watchdog (pid " + std::to_string(watchdog.pid()) + ", exit status " +
+                          std::to_string(h.watchdog_status) + ")";
+  h.text = h.confirmed ? "safe state NOT CONFIRMED by msmcal itself; " + who +
+                             ", asked to act on new connections, confirmed every output off (its "
+                             "lines: [watchdog ...] in the log)"
+                       : "safe state NOT CONFIRMED by msmcal itself, nor by " + who +
+                             ": CHECK THE GENERATORS' OUTPUTS BY HAND";
+  return h;
 }
 
 int Watchdog::Reap(int timeout_ms) {

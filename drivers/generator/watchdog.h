@@ -90,12 +90,28 @@ struct WatchdogOutcome {
 // Connects to every generator in parallel and runs the Keysight driver's safe state, retrying
 // within config.retry_window_ms. Never throws.
 std::vector<WatchdogOutcome> SwitchOutputsOff(const WatchdogConfig& config);
-// One report line per outcome, as the watchdog appends it to the log.
-std::string FormatWatchdogReport(const WatchdogOutcome& outcome, pid_t parent_pid);
+// One report line per outcome, as the watchdog appends it to the log; `asked`: the parent was
+// alive and asked the watchdog to act (Watchdog::ActNow), else it ended without a stand-down.
+std::string FormatWatchdogReport(const WatchdogOutcome& outcome, pid_t parent_pid,
+                                 bool asked = false);
 
 // The watchdog process's main (a WatchdogExit value). Ignores SIGINT, SIGHUP, SIGQUIT and
 // SIGPIPE; SIGTERM and SIGKILL still end it.
 int RunWatchdog(const WatchdogInvocation& invocation);
+
+class Watchdog;
+
+// What became of a safe state handed over to the watchdog.
+struct WatchdogHandOver {
+  bool confirmed = false;  // the watchdog confirmed every output of every generator off
+  int watchdog_status = -1;
+  int exit_status = kExitSafeStateUnconfirmed;  // kExitSafeStateByWatchdog when confirmed
+  std::string text;                             // one line, loud, for the log and stderr
+};
+// This process's own safe state was not confirmed: closes every generator connection of this
+// process (DisconnectOpenGenerators), asks the watchdog to act (Watchdog::ActNow) and waits for
+// its verdict. The generators are the watchdog's from then on: this process must not drive them.
+WatchdogHandOver HandOverToWatchdog(Watchdog& watchdog);
 
 // How to start the watchdog process. An empty executable means no watchdog.
 struct WatchdogLaunch {
@@ -128,6 +144,13 @@ class Watchdog {
   // contacting any generator. Returns its exit status (kWatchdogStoodDown), or -1 if it had to
   // be killed or could not be reaped. Idempotent (later calls return the first status).
   int StandDown();
+  // Call when this process's own safe state was not confirmed (it is alive, the watchdog would
+  // otherwise wait for its end): the watchdog fires now, as on the parent's death, and this
+  // waits for its verdict (bounded by the retry window + 2 s). Returns its exit status
+  // (kWatchdogFiredConfirmed, kWatchdogFiredUnconfirmed; kWatchdogStoodDown if it had been stood
+  // down already; -1 if it had to be killed). Close this process's generator connections first
+  // (HandOverToWatchdog does both).
+  int ActNow();
   pid_t pid() const { return pid_; }
 
  private:

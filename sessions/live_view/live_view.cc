@@ -16,7 +16,11 @@
 #include "sessions/orchestrator/preview.h"
 
 namespace msmcal::live_view {
+
 namespace {
+
+// Live images a second at most while a Hall recording runs (LiveView::ProcessLiveFrame).
+constexpr double kRecordingLiveFps = 2.0;
 
 using Clock = std::chrono::steady_clock;
 
@@ -324,10 +328,16 @@ uint64_t LiveView::version() const {
 
 void LiveView::ProcessLiveFrame(const orchestrator::LiveFrame& f) {
   if (!f.image || f.image->empty()) return;
+  std::string recording;  // a Hall recording running (the background one: frames are free)
   {
     std::lock_guard<std::mutex> lock(mu_);
+    recording = f.step == 0 ? rig_.hall_recording : std::string();
+    // During a recording at most 2 images a second, without the board search: the camera image
+    // only, so the host's CPU stays with the recording.
+    const double fps = recording.empty() ? options_.max_live_fps
+                                         : std::min(options_.max_live_fps, kRecordingLiveFps);
     const Clock::time_point now = Clock::now();
-    if (now - last_live_ < std::chrono::duration<double>(1.0 / options_.max_live_fps)) return;
+    if (now - last_live_ < std::chrono::duration<double>(1.0 / fps)) return;
     last_live_ = now;
   }
   cv::Mat image = *f.image;
@@ -346,6 +356,9 @@ void LiveView::ProcessLiveFrame(const orchestrator::LiveFrame& f) {
     const std::string& file =
         step == 1 ? plan_.step1.at(f.index).file : plan_.step2.at(f.index).file;
     caption = "LIVE " + file;
+  } else if (!recording.empty()) {
+    g.accepted = true;
+    caption = "LIVE (Hall " + recording + " recording running: camera image only)";
   } else {
     // A Hall recording's set-up: the boards only (no frame with expected dots follows directly).
     g.boards = {vision::DetectCheckerboard(image, {plan_.world_board.cols, plan_.world_board.rows},
@@ -440,6 +453,9 @@ std::string LiveView::StateJson() const {
   p["waiting"] = waiting_;
   p["title"] = prompt_.title;
   p["instructions"] = prompt_.instructions;
+  p["setup"] = prompt_.setup_json.empty()
+                   ? nlohmann::json()
+                   : nlohmann::json::parse(prompt_.setup_json, nullptr, /*allow_exceptions=*/false);
   p["number"] = prompt_.number;
   p["total"] = prompt_.total;
   p["repeats"] = repeats_;

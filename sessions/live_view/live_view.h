@@ -83,6 +83,9 @@ struct Prompt {
   // recording's set-up.
   int step = 0;
   size_t index = 0;
+  // The set-up as a hook program gets it (setup::SetupToJson, docs/lab-path.md), for scripts
+  // driving the page (the state's prompt.setup); empty: none.
+  std::string setup_json;
 };
 
 class LiveView {

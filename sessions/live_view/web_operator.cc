@@ -60,6 +60,7 @@ void WebOperator::Present(const setup::Setup& s) {
   p.total = s.of;
   p.step = s.step == setup::SetupStep::kStep1 ? 1 : s.step == setup::SetupStep::kStep2 ? 2 : 0;
   p.index = s.frame_indices.empty() ? 0 : s.frame_indices.front();
+  p.setup_json = setup::SetupToJson(s);
   Echo(s.text + "[waiting for the web page: Ready / Repeat / Abort]\n");
   if (view_.Ask(p) != Command::kReady) {
     Echo("aborted from the web page.\n");

@@ -20,6 +20,7 @@
 #include "drivers/generator/function_generator.h"
 #include "drivers/generator/rig_generators.h"
 #include "drivers/generator/safe_state.h"
+#include "drivers/generator/watchdog.h"
 #include "processing/signal/rig_signals.h"
 #include "sessions/interchange/interchange_io.h"
 #include "sessions/store/session_store.h"
@@ -710,13 +711,20 @@ class SessionController {
       inst_.cam->Stop();
     } catch (const std::exception& e) {
       log_->Line(std::string("ERROR: ") + e.what(), "error");
-      if (inst_.cam) inst_.cam->Stop();
+      // Outputs off first: stopping a camera that is gone can take seconds (its control times
+      // out).
       SafeState();
       guard_->Disarm();  // outputs are off already
+      if (inst_.cam) inst_.cam->Stop();
+      if (handed_over_)
+        throw gen::SafeStateNotConfirmed(handed_over_->exit_status,
+                                         std::string(e.what()) + "; then " + handed_over_->text);
       throw;
     }
     SafeState();
     guard_->Disarm();
+    if (handed_over_)
+      throw gen::SafeStateNotConfirmed(handed_over_->exit_status, handed_over_->text);
     WriteTheSession();
     return result_;
   }
@@ -800,6 +808,22 @@ class SessionController {
   // asked for now. A failed check ends with the outputs off and a RigCheckError.
   void CheckTheRig() {
     SetStep(kStepRigCheck, store::StepState::kRunning);
+    // A signal in the rig check: every generator opened so far (or being opened) off through
+    // the driver's registry, then the line in the session log (the command's
+    // OpenGeneratorsGuard, if any, says it on stderr). Silent once the session's guard takes
+    // over.
+    std::atomic<bool> in_rig_check{true};
+    gen::SafeStateGuard rig_check_guard([&] {
+      if (!in_rig_check || gen::SafeStateGuard::HandlingSignal() == 0) return;
+      const std::vector<gen::OpenGeneratorOutcome> off = gen::SafeStateOfOpenGenerators();
+      bool all = true;
+      for (const auto& o : off) all = all && o.confirmed;
+      if (!all) gen::SafeStateGuard::ReportUnconfirmed();
+      log_->Line("interrupted (signal) in the rig check: generator outputs " +
+                     (off.empty() ? std::string("untouched (no generator connection open yet)")
+                                  : gen::FormatOpenGeneratorOutcomes(off)),
+                 "error");
+    });
     background_device_ = options_.mcu.device;
     ask_background_later_ = !background_device_.empty();
     if (!ask_background_later_) {
@@ -824,6 +848,7 @@ class SessionController {
     }
     SetStep(kStepRigCheck, store::StepState::kDone);
     log_->Line("rig check passed");
+    in_rig_check = false;
   }
 
   // From here on outputs may be on: safe state on signal, exception and exit; the watchdog for
@@ -840,8 +865,14 @@ class SessionController {
     }
     guard_ = std::make_unique<gen::SafeStateGuard>([this] {
       SafeState();
-      if (!result_.safe_state_confirmed) gen::SafeStateGuard::ReportUnconfirmed();
-      log_->Line("interrupted (signal): generator outputs switched off", "error");
+      if (handed_over_)
+        gen::SafeStateGuard::ReportHandedOver(handed_over_->confirmed, handed_over_->text);
+      else if (!result_.safe_state_confirmed)
+        gen::SafeStateGuard::ReportUnconfirmed();
+      log_->Line(handed_over_
+                     ? "interrupted (signal): generator outputs left to the watchdog (above)"
+                     : "interrupted (signal): generator outputs switched off",
+                 "error");
     });
   }
 
@@ -925,8 +956,13 @@ class SessionController {
     }
     Play(BackgroundSignals(plan_), "Hall background");
     Emit(HallStarted("background", background_device_, *log_));
-    const auto r = RecordHall(*inst_.mcu, out_ / "hall" / "background.csv", options_,
-                              options_.background_seconds, nullptr);
+    const auto r = [&] {
+      // Nothing else takes frames during the background recording: the live view keeps its
+      // camera image (issue 19; the view downscales and paces it, LiveViewOptions).
+      LivePump pump(inst_.cam.get(), options_.on_live_frame, 0, 0);
+      return RecordHall(*inst_.mcu, out_ / "hall" / "background.csv", options_,
+                        options_.background_seconds, nullptr);
+    }();
     result_.background_readings = r.counts.readings_delivered;
     result_.background_edges = r.counts.edges_delivered;
     HallDone("background", r);
@@ -1038,9 +1074,14 @@ class SessionController {
     }
   }
 
+  // Called by the main thread and by the signal watcher. Not confirmed by msmcal itself: the
+  // watchdog is asked to act now (docs/watchdog.md), and the session ends with
+  // SafeStateNotConfirmed (signal: the guard's exit status).
   void SafeState() {
+    std::lock_guard<std::mutex> lock(safe_state_mu_);
     const bool ok = rig_->SafeState();
     if (ok && watchdog_) watchdog_->StandDown();
+    if (!ok && watchdog_ && !handed_over_) handed_over_ = gen::HandOverToWatchdog(*watchdog_);
     log_->SetGeneratorEpoch(std::nullopt);
     SessionEvent e;
     e.kind = SessionEvent::Kind::kSafeState;
@@ -1048,6 +1089,7 @@ class SessionController {
     e.text = ok ? "safe state: generator outputs off (confirmed)"
                 : "safe state: outputs off NOT confirmed by both generators";
     log_->Line(e.text, ok ? "info" : "error");
+    if (handed_over_) log_->Line(handed_over_->text, "error");
     result_.safe_state_confirmed = ok;
     Emit(e);
     ReportRig(/*outputs_on=*/!ok);
@@ -1265,6 +1307,8 @@ class SessionController {
   OpenInstruments inst_;
   std::unique_ptr<gen::RigGenerators> rig_;
   std::unique_ptr<gen::Watchdog> watchdog_;
+  std::optional<gen::WatchdogHandOver> handed_over_;
+  std::mutex safe_state_mu_;  // the main thread's and the signal watcher's SafeState()
   std::unique_ptr<gen::SafeStateGuard> guard_;
 };
 

@@ -6,9 +6,13 @@
 // real drivers: SCPI to the two generators, GigE Vision or V4L2 to the camera, the serial link to
 // the Hall MCU). The person at the rig is a RigOperator.
 //
-// Safe state: from the moment a generator output may be on, a SafeStateGuard switches every
-// output off on SIGINT/SIGTERM (then the process ends with 128 + signo), on any exception and at
-// the end of the run; the session log (session_log.txt in the folder) records what happened.
+// Safe state: in the rig check a signal switches every generator opened so far off (the
+// driver's registry, gen::SafeStateOfOpenGenerators); from the moment a generator output may be
+// on, a SafeStateGuard switches every output off on SIGINT/SIGTERM (then the process ends with
+// 128 + signo), on any exception and at the end of the run; the session log (session_log.txt in
+// the folder) records what happened. When that safe state is not confirmed and a watchdog is
+// armed, the watchdog is asked to act (gen::HandOverToWatchdog) and RunSession throws
+// gen::SafeStateNotConfirmed (exit status 76 or 75, docs/watchdog.md).
 // Solving is not done here (see app/cmd_demo.cc): the result is a complete interchange folder.
 //
 // Journal: the session folder is also a session store (sessions/store: session.db beside the

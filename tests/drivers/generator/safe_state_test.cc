@@ -12,9 +12,9 @@
 #include <cstdlib>
 #include <string>
 
+#include "drivers/generator/function_generator.h"
 #include "test_rig.h"
 #include "tests/testing/child_process.h"
-
 
 namespace msmcal::gen {
 namespace {
@@ -81,10 +81,44 @@ TEST(SafeStateGuardTest, DestructorRunsActionAndDisarmSkipsIt) {
   EXPECT_EQ(runs, 1);
   {
     SafeStateGuard g([&] { ++runs; });
-    EXPECT_THROW(SafeStateGuard([] {}), std::runtime_error);  // one per process
     g.Disarm();
   }
   EXPECT_EQ(runs, 1);
+}
+
+// A command's guard around a session's: each runs its own action when it leaves its scope.
+TEST(SafeStateGuardTest, GuardsNest) {
+  std::string order;
+  {
+    SafeStateGuard outer([&] { order += "outer;"; });
+    {
+      SafeStateGuard inner([&] { order += "inner;"; });
+    }
+    EXPECT_EQ(order, "inner;");
+    SafeStateGuard again([&] { order += "again;"; });
+  }
+  EXPECT_EQ(order, "inner;again;outer;");
+  EXPECT_EQ(SafeStateGuard::HandlingSignal(), 0);
+}
+
+// The driver registers every connection it opens; the registry's safe state reaches it, and a
+// closed one is gone from it.
+TEST(OpenGeneratorsTest, TheRegistryHoldsEveryOpenGenerator) {
+  sim::MockGeneratorPair pair(sim::GeneratorPairOptions{});
+  EXPECT_TRUE(SafeStateOfOpenGenerators().empty());
+  const RigGeneratorConfig config = testing::RigConfigFor(pair);
+  {
+    auto g = OpenKeysight33500(config.unit1);
+    g->SetOutput(1, true);
+    ASSERT_TRUE(pair.unit(1).AnyOutputOn());
+    const auto outcomes = SafeStateOfOpenGenerators();
+    ASSERT_EQ(outcomes.size(), 1u);
+    EXPECT_TRUE(outcomes[0].confirmed);
+    EXPECT_EQ(outcomes[0].who, "unit1 (127.0.0.1:" + std::to_string(pair.port(1)) + ")");
+    EXPECT_FALSE(pair.unit(1).AnyOutputOn());
+    EXPECT_EQ(FormatOpenGeneratorOutcomes(outcomes), outcomes[0].who + " off, confirmed");
+  }
+  EXPECT_TRUE(SafeStateOfOpenGenerators().empty());
 }
 
 }  // namespace

@@ -25,6 +25,8 @@
 #include <string>
 #include <vector>
 
+#include "drivers/generator/rig_generators.h"
+#include "drivers/generator/safe_state.h"
 #include "drivers/scpi/scpi_client.h"
 #include "test_rig.h"
 #include "tests/testing/child_process.h"
@@ -347,6 +349,41 @@ TEST(WatchdogArguments, RoundTripAndErrorsNameTheArgument) {
   EXPECT_NE(error(with({"--retry-ms", "100", "--attempt-ms", "400", "--generator", "u=h:1"}))
                 .find("attempt_timeout_ms = 400"),
             std::string::npos);
+}
+
+// This process's own safe state unconfirmed, the process alive: HandOverToWatchdog closes this
+// process's connections (the units serve one at a time) and the watchdog, asked to act, switches
+// every output off on its own connections and says so; the verdict comes back (exit 76).
+TEST_F(WatchdogTest, AskedToActWhileTheParentLivesSwitchesEveryOutputOff) {
+  sim::GeneratorPairOptions one_at_a_time;
+  one_at_a_time.limits1.second_connection = one_at_a_time.limits2.second_connection =
+      sim::SecondConnection::kQueue;
+  sim::MockGeneratorPair pair(one_at_a_time);
+  const RigGeneratorConfig config = testing::RigConfigFor(pair);
+  auto master = OpenKeysight33500(config.unit1);
+  auto slave = OpenKeysight33500(config.unit2);
+  RigGenerators rig(*master, *slave);
+  rig.Apply(PlanRigSignals(config.signals));
+  for (int u = 1; u <= 2; ++u) ASSERT_TRUE(pair.unit(u).AnyOutputOn()) << "unit " << u;
+  std::unique_ptr<Watchdog> wd = Watchdog::Start(
+      WatchdogLaunch{MSMCAL_WATCHDOG_CHILD, "", {"watchdog"}}, WatchdogConfigFor(config, log_));
+
+  const WatchdogHandOver h = HandOverToWatchdog(*wd);
+  EXPECT_TRUE(h.confirmed) << h.text;
+  EXPECT_EQ(h.watchdog_status, kWatchdogFiredConfirmed);
+  EXPECT_EQ(h.exit_status, kExitSafeStateByWatchdog);
+  EXPECT_NE(h.text.find("confirmed every output off"), std::string::npos) << h.text;
+  for (int u = 1; u <= 2; ++u) EXPECT_TRUE(BothChannelsOff(pair.unit(u))) << "unit " << u;
+  const std::string log = ReadFile(log_);
+  for (int u = 1; u <= 2; ++u) {
+    EXPECT_NE(log.find("asked the watchdog to act (its own safe state was not confirmed): unit" +
+                       std::to_string(u) + " (127.0.0.1:" + std::to_string(pair.port(u)) +
+                       ") outputs off, confirmed"),
+              std::string::npos)
+        << log;
+  }
+  EXPECT_THROW(master->SetOutput(1, true), scpi::ScpiError);  // ours are closed
+  EXPECT_EQ(wd->StandDown(), kWatchdogFiredConfirmed);        // reaped once, idempotent
 }
 
 TEST(WatchdogStart, RefusesWhenTheWatchdogCannotArm) {
