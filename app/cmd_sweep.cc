@@ -25,18 +25,18 @@
 
 #include "app/command_registry.h"
 #include "app/session_flow.h"
-#include "sessions/orchestrator/fixed_rig_operator.h"
-#include "sessions/orchestrator/hook_operator.h"
-#include "sessions/orchestrator/reference_steps.h"
-#include "sessions/setup/setup.h"
 #include "mocks/rig/rig_simulator.h"
 #include "mocks/rig/truth_io.h"
 #include "sessions/interchange/interchange_io.h"
+#include "sessions/orchestrator/fixed_rig_operator.h"
+#include "sessions/orchestrator/hook_operator.h"
 #include "sessions/orchestrator/orchestrator.h"
+#include "sessions/orchestrator/reference_steps.h"
 #include "sessions/plan/session_plan.h"
 #include "sessions/report/session_report.h"
 #include "sessions/report/sweep_report.h"
 #include "sessions/rig/rig_file.h"
+#include "sessions/setup/setup.h"
 #include "sessions/store/session_store.h"
 #include "sessions/sweep/sweep_plan.h"
 #include "sessions/sweep/sweep_runner.h"
@@ -236,8 +236,7 @@ std::string FinishPoint(const fs::path& folder, int threads) {
 // RunSweep with the progress printer and the injected clock, then the summary table, the
 // sweep's report and the exit status (1 when a point failed).
 void RunSweepAndReport(const sweep::SweepPlan& plan, const fs::path& dir, sweep::SweepHooks hooks,
-                       ProgressPrinter& printer,
-                       std::chrono::steady_clock::time_point start) {
+                       ProgressPrinter& printer, std::chrono::steady_clock::time_point start) {
   hooks.now_s = [start] {
     return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   };
@@ -307,8 +306,7 @@ void RunRigSweep(const SweepArgs& args, const fs::path& plan_file, const fs::pat
     try {
       reference_session = interchange::ReadRecordingForSolve(reference);
     } catch (const std::exception& e) {
-      throw std::runtime_error("sweep --rig: --reference " + reference.string() + ": " +
-                               e.what());
+      throw std::runtime_error("sweep --rig: --reference " + reference.string() + ": " + e.what());
     }
     const orchestrator::SessionJournalState j = orchestrator::ReadSessionJournal(reference);
     reference_rig_id = j.rig_id;
@@ -345,10 +343,14 @@ void RunRigSweep(const SweepArgs& args, const fs::path& plan_file, const fs::pat
     const dataset::Recording& point_plan = point_plans.at(point.name);
     if (!rig_in_state) {
       const std::string json = setup::SetupToJson(orchestrator::FixedRigSetup(point_plan));
-      const int status = orchestrator::RunHookCommand(hook, json + "\n", args.hook_timeout_s * 1000);
+      const int status =
+          orchestrator::RunHookCommand(hook, json + "\n", args.hook_timeout_s * 1000);
       const std::string outcome = orchestrator::DescribeWaitStatus(status);
-      printer.Print("hook: the sweep's rig state (MSM mounted, camera at C2, every beam "
-                    "unblocked): " + outcome, /*transient=*/false);
+      printer.Print(
+          "hook: the sweep's rig state (MSM mounted, camera at C2, every beam "
+          "unblocked): " +
+              outcome,
+          /*transient=*/false);
       if (!(WIFEXITED(status) && WEXITSTATUS(status) == 0))
         throw std::runtime_error("operator hook '" + hook +
                                  "' failed at the sweep's rig state: " + outcome);

@@ -278,7 +278,8 @@ orchestrator::SessionResult RunLabAcquisition(const fs::path& out,
       std::max<int64_t>(300'000'000, std::llround((oo.camera_exposure_us.value_or(0) * 1e3) +
                                                   1e9 / oo.camera_frame_rate_hz + 100e6));
   if (!options.reference.empty()) {  // a rig sweep's point: starts at the rig check, step 2 next
-    if (!options.resume) orchestrator::SeedSessionFromReference(oo, options.plan, options.reference);
+    if (!options.resume)
+      orchestrator::SeedSessionFromReference(oo, options.plan, options.reference);
     oo.resume = true;
     orchestrator::FixedRigOptions fo;
     fo.mcu_device = oo.mcu.device;
@@ -358,8 +359,8 @@ bool SendTruthRequest(const std::string& hook_command, int timeout_ms, const fs:
   }
   if (progress)
     progress(ok ? "hook: truth request: " + outcome
-                : "warning: operator hook '" + hook_command + "' failed at the truth request: " +
-                      outcome);
+                : "warning: operator hook '" + hook_command +
+                      "' failed at the truth request: " + outcome);
   return ok;
 }
 

@@ -48,8 +48,8 @@ setup::Setup FixedRigSetup(const dataset::Recording& plan) {
   s.step = setup::SetupStep::kStep2;
   s.state = FixedRigState(plan);
   s.changes = {"camera at the step-2 position C2 (sees the world board)",
-               "mount the MSM in the beam path, with its top frame",
-               "remove the sliding plate", "unblock beams " + Ints(s.state.beams_unblocked)};
+               "mount the MSM in the beam path, with its top frame", "remove the sliding plate",
+               "unblock beams " + Ints(s.state.beams_unblocked)};
   s.text = "=== [1/1] Rig sweep: the rig stays like this for every point ===\n";
   for (size_t i = 0; i < s.changes.size(); ++i)
     s.text += "  " + std::to_string(i + 1) + ". " + s.changes[i] + "\n";
@@ -61,8 +61,8 @@ FixedRigOperator::FixedRigOperator(const dataset::Recording& plan, const FixedRi
     : SetupOperator(plan, WalkOf(options), /*inner=*/nullptr), state_(FixedRigState(plan)) {}
 
 void FixedRigOperator::Present(const setup::Setup& s) {
-  const std::string what = "set-up " + std::to_string(s.block) + "/" + std::to_string(s.of) +
-                           " (" + setup::ToString(s.step) + ")";
+  const std::string what = "set-up " + std::to_string(s.block) + "/" + std::to_string(s.of) + " (" +
+                           setup::ToString(s.step) + ")";
   if (s.step == setup::SetupStep::kStep1 || s.step == setup::SetupStep::kHallBackground)
     throw FixedRigMismatch(what +
                            ": the rig stays in the step 2 state (nobody at the rig); step 1 and "
@@ -78,8 +78,7 @@ void FixedRigOperator::Present(const setup::Setup& s) {
   if (s.state.top_frame_mounted != state_.top_frame_mounted)
     mismatch("top_frame_mounted", YesNo(s.state.top_frame_mounted),
              YesNo(state_.top_frame_mounted));
-  if (s.state.sliding_plate.mounted)
-    mismatch("sliding_plate.mounted", "true", "false");
+  if (s.state.sliding_plate.mounted) mismatch("sliding_plate.mounted", "true", "false");
   // A Hall recording's beams are what the previous set-up left (it needs no dot); a frame's
   // beams are physical.
   if (s.step == setup::SetupStep::kStep2 && s.state.beams_unblocked != state_.beams_unblocked)

@@ -107,9 +107,9 @@ void SeedSessionFromReference(const OrchestratorOptions& options, const dataset:
     LinkOrCopy(background, staging / "hall" / "background.csv");
     if (fs::exists(background_clock))
       LinkOrCopy(background_clock, staging / "hall" / background_clock.filename());
-    const dataset::HallRecording rec = interchange::ReadHallCsv(
-        staging / "hall" / "background.csv",
-        acquisition::ClockCsvPathFor(staging / "hall" / "background.csv"));
+    const dataset::HallRecording rec =
+        interchange::ReadHallCsv(staging / "hall" / "background.csv",
+                                 acquisition::ClockCsvPathFor(staging / "hall" / "background.csv"));
     journal->AppendHallReadings("background", rec.readings);
     journal->AppendClockEdges("background", rec.clock_edges_us);
     journal->SetMeta("hall.background.present", "1");
