@@ -3,8 +3,9 @@
 continued, end to end through the msmcal binary.
 
 `msmcal mock rig --rig RIG --hands SOCK` serves the twin. A reference session (`msmcal plan`,
-`msmcal session run --operator hook:...`, as twin_session_hook_test.py, with fewer poses) gives
-step 1 and the background Hall recording. `msmcal sweep SWEEP --rig RIG --reference REF --out DIR
+`msmcal session run --operator hook:...`, as twin_session_hook_test.py, with fewer poses and
+triggers; stopped once its session.yaml is written: its own solve is not needed) gives step 1
+and the background Hall recording. `msmcal sweep SWEEP --rig RIG --reference REF --out DIR
 --operator hook:...` then runs 2 points that differ in the fast drive's amplitude: per point the
 rig check, step 2 with the actual Hall recording (nobody at the rig: one hands call puts the twin
 in the step 2 state), the truth request, the solve and the Hall calibration. msmcal (not its
@@ -53,6 +54,7 @@ def make_rig(source, tmp):
                  ("  poses: 7", "  poses: 4"),
                  ("  exposures: 3 ", "  exposures: 1 "),
                  ("spacing: 0.25", "spacing: 0.6"),
+                 ("max_triggers: 2000", "max_triggers: 9"),
                  ("neutral_frames: 2", "neutral_frames: 1"),
                  ("fast_only_frames: 3", "fast_only_frames: 1")]:
         if a not in text:
@@ -199,10 +201,22 @@ def main():
 
     twin = start_twin(msmcal, rig, sock)
     try:
-        p = subprocess.run([msmcal, "session", "run", "--rig", rig, "--plan", plan, "--out", ref,
-                            "--operator", hook], capture_output=True, text=True, timeout=600)
-        if p.returncode != 0 or not os.path.exists(os.path.join(ref, "session.yaml")):
-            fail("reference session: exit %d\n%s" % (p.returncode, (p.stdout + p.stderr)[-3000:]))
+        # The reference is complete once its session.yaml is written (outputs off, confirmed);
+        # its own solve is not needed here, so it is stopped there.
+        child = subprocess.Popen([msmcal, "session", "run", "--rig", rig, "--plan", plan,
+                                  "--out", ref, "--operator", hook], stdout=subprocess.PIPE,
+                                 stderr=subprocess.STDOUT, text=True)
+        ref_log = []
+        for line in child.stdout:
+            ref_log.append(line)
+            if "session written: " in line:
+                break
+        child.kill()
+        child.wait()
+        child.stdout.close()
+        if not os.path.exists(os.path.join(ref, "session.yaml")) or \
+                not any("safe state: generator outputs off (confirmed)" in l for l in ref_log):
+            fail("reference session not written:\n" + "".join(ref_log)[-3000:])
         t_ref = time.monotonic() - t0
 
         # A point whose world board is not the reference's is refused before anything starts.
