@@ -54,7 +54,7 @@ def make_rig(source, tmp):
                  ("  poses: 7", "  poses: 4"),
                  ("  exposures: 3 ", "  exposures: 1 "),
                  ("spacing: 0.25", "spacing: 0.6"),
-                 ("max_triggers: 2000", "max_triggers: 9"),
+                 ("max_triggers: 2000", "max_triggers: 15"),
                  ("neutral_frames: 2", "neutral_frames: 1"),
                  ("fast_only_frames: 3", "fast_only_frames: 1")]:
         if a not in text:
