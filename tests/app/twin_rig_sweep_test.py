@@ -31,7 +31,6 @@ import json
 import math
 import os
 import re
-import select
 import signal
 import subprocess
 import sys
@@ -65,22 +64,21 @@ def make_rig(source, tmp):
     return rig
 
 
-def start_twin(msmcal, rig, sock):
-    # No --exposure: the twin integrates the exposure the session sets on the camera.
+def start_twin(msmcal, rig, sock, log_file):
+    # No --exposure: the twin integrates the exposure the session sets on the camera. Its output
+    # goes to a file: a pipe nobody reads would block the twin once full (it logs the killed
+    # client's broken links).
+    log = open(log_file, "w")
     twin = subprocess.Popen([msmcal, "mock", "rig", "--rig", rig, "--hands", sock],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE)
-    buf, lines, fd = b"", [], twin.stdout.fileno()
+                            stdout=log, stderr=subprocess.STDOUT)
+    log.close()
     deadline = time.monotonic() + 60
-    while "twin: ready" not in lines:
-        r, _, _ = select.select([fd], [], [], max(0.0, deadline - time.monotonic()))
-        if not r:
-            fail("the twin did not get ready: %r" % lines)
-        chunk = os.read(fd, 4096)
-        if not chunk:
-            fail("the twin exited: %s" % twin.stderr.read().decode())
-        buf += chunk
-        *done, buf = buf.split(b"\n")
-        lines += [l.decode().strip() for l in done]
+    while "twin: ready" not in open(log_file).read():
+        if twin.poll() is not None:
+            fail("the twin exited: %s" % open(log_file).read())
+        if time.monotonic() > deadline:
+            fail("the twin did not get ready: %s" % open(log_file).read())
+        time.sleep(0.05)  # polls the twin's log for its ready line
     return twin
 
 
@@ -199,7 +197,8 @@ def main():
     cmd = [msmcal, "sweep", sweep, "--rig", rig, "--reference", ref, "--out", out,
            "--operator", hook]
 
-    twin = start_twin(msmcal, rig, sock)
+    twin_log = os.path.join(tmp, "twin.log")
+    twin = start_twin(msmcal, rig, sock, twin_log)
     try:
         # The reference is complete once its session.yaml is written (outputs off, confirmed);
         # its own solve is not needed here, so it is stopped there.
