@@ -391,6 +391,11 @@ OpenCameraResult OpenAravisCamera(const AravisCameraOptions& options) {
       }
       std::this_thread::sleep_for(std::chrono::milliseconds(200));
     }
+    // An acquisition a dead client left running keeps streaming to its address (a camera reads
+    // the stream destination when the acquisition starts): stop it, so that Start() begins a
+    // stream to us. Harmless when stopped.
+    GErrorHolder stop;
+    arv_camera_stop_acquisition(camera, stop.out());
   }
   if (arv_camera_is_gv_device(camera) && options.packet_size > 0) {
     arv_camera_gv_set_packet_size(camera, options.packet_size, error.out());
