@@ -48,6 +48,7 @@ def make_rig(source, tmp):
     # The rig file's camera (the gate is tuned for its ~20 px squares), short Hall recordings,
     # 4 poses with one exposure per step 1 frame, fewer triggers and step 2 frames.
     for a, b in [("device: /dev/ttyACM0", "device: " + os.path.join(tmp, "tty")),
+                 ("stall_timeout_ms: 500", "stall_timeout_ms: 2000"),  # a loaded machine
                  ("hall_background_s: 12", "hall_background_s: 1"),
                  ("hall_actual_min_s: 15", "hall_actual_min_s: 1"),
                  ("  poses: 7", "  poses: 4"),
