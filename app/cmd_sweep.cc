@@ -6,6 +6,12 @@
 // points are skipped, a point killed mid-acquisition is resumed from its journal (nothing
 // recorded is taken again), a point killed while solving only finishes. Progress: one line per
 // event (a redrawn status line on a terminal); at the end a summary table (also DIR/summary.csv).
+//
+// `msmcal sweep SWEEP.yaml --rig RIG --reference SESSION --out DIR [--operator hook:CMD]` (issue
+// 20, docs/lab-path.md "Rig sweeps"): the same on the rig, each point the reference's step 1 and
+// background Hall recording with the point's rig check, step 2 and actual Hall recording
+// (RunLabAcquisition with LabAcquisitionOptions::reference: nobody at the rig), then the same
+// finish steps; every point is checked against the rig's limits and the reference first.
 #include <sys/ioctl.h>
 #include <sys/wait.h>
 #include <unistd.h>
