@@ -1,6 +1,7 @@
 #include "app/session_flow.h"
 
 #include <spdlog/spdlog.h>
+#include <sys/wait.h>
 #include <unistd.h>
 #include <yaml-cpp/yaml.h>
 
@@ -21,8 +22,10 @@
 #include "mocks/rig/truth_io.h"
 #include "sessions/interchange/interchange_io.h"
 #include "sessions/orchestrator/console_operator.h"
+#include "sessions/orchestrator/fixed_rig_operator.h"
 #include "sessions/orchestrator/hook_operator.h"
 #include "sessions/orchestrator/preview.h"
+#include "sessions/orchestrator/reference_steps.h"
 #include "sessions/results/finish_steps.h"
 #include "sessions/store/session_store.h"
 #include "sessions/store/transfer.h"
@@ -252,23 +255,42 @@ orchestrator::SessionResult RunLabAcquisition(const fs::path& out,
   for (const auto& p : options.poses)
     config << YAML::Flow << YAML::BeginSeq << common::ShortestDouble(p.distance_mm)
            << common::ShortestDouble(p.tilt_deg) << YAML::EndSeq;
-  config << YAML::EndSeq << YAML::Key << "rig_yaml" << YAML::Value << YAML::Literal
-         << options.rig_yaml << YAML::EndMap;
+  config << YAML::EndSeq;
+  if (!options.reference.empty())
+    config << YAML::Key << "reference" << YAML::Value << options.reference.string();
+  config << YAML::Key << "rig_yaml" << YAML::Value << YAML::Literal << options.rig_yaml
+         << YAML::EndMap;
   oo.run_config_yaml = std::string(config.c_str()) + "\n";
   oo.rig_id = options.rig_id;
   oo.mirror_id = options.mirror_id;
   oo.note = options.note;
   oo.resume = options.resume;
   oo.watchdog = gen::SelfWatchdogLaunch("msmcal", "watchdog");
+  if (options.adjust_options) options.adjust_options(oo);
   if (std::string e = oo.Validate(); !e.empty()) throw std::invalid_argument(e);
-  oo.on_frame = GuidedObserver(out, options.plan.world_board, options.plan.sliding_board,
-                               options.progress, nullptr);
+  if (options.reference.empty())
+    oo.on_frame = GuidedObserver(out, options.plan.world_board, options.plan.sliding_board,
+                                 options.progress, oo.on_frame);
 
   // Frames count once they reached the host one exposure + one frame period (the transfer of a
   // free-running camera) + 100 ms after the set-up took effect: frames in flight are discarded.
   const int64_t settle_ns =
       std::max<int64_t>(300'000'000, std::llround((oo.camera_exposure_us.value_or(0) * 1e3) +
                                                   1e9 / oo.camera_frame_rate_hz + 100e6));
+  if (!options.reference.empty()) {  // a rig sweep's point: starts at the rig check, step 2 next
+    if (!options.resume)
+      orchestrator::SeedSessionFromReference(oo, options.plan, options.reference);
+    oo.resume = true;
+    orchestrator::FixedRigOptions fo;
+    fo.mcu_device = oo.mcu.device;
+    fo.host_clock_ns = HostClockFor(oo.camera);
+    fo.settle_ns = settle_ns;
+    orchestrator::FixedRigOperator op(options.plan, fo);
+    orchestrator::SessionResult result =
+        orchestrator::RunSession(oo, options.plan, op, options.progress);
+    if (!hook.empty()) (void)SendTruthRequest(hook, options.hook_timeout_ms, out, options.progress);
+    return result;
+  }
   if (!hook.empty()) {
     orchestrator::HookOperatorOptions ho;
     ho.settle_ns = settle_ns;
@@ -323,6 +345,25 @@ void SendTruthRequest(orchestrator::HookOperator& hook, const fs::path& out,
   }
 }
 
+bool SendTruthRequest(const std::string& hook_command, int timeout_ms, const fs::path& out,
+                      const orchestrator::ProgressFn& progress) {
+  std::string outcome;
+  bool ok = false;
+  try {
+    const int status = orchestrator::RunHookCommand(
+        hook_command, setup::TruthRequestJson(out / "truth") + "\n", timeout_ms);
+    ok = WIFEXITED(status) && WEXITSTATUS(status) == 0;
+    outcome = orchestrator::DescribeWaitStatus(status);
+  } catch (const orchestrator::HookFailed& e) {
+    outcome = e.what();
+  }
+  if (progress)
+    progress(ok ? "hook: truth request: " + outcome
+                : "warning: operator hook '" + hook_command +
+                      "' failed at the truth request: " + outcome);
+  return ok;
+}
+
 LabAcquisitionOptions LabOptionsFromJournal(const fs::path& dir, const std::string& config_yaml) {
   const std::string where = (dir / "session.db").string() + " [config_yaml]";
   LabAcquisitionOptions o;
@@ -336,6 +377,7 @@ LabAcquisitionOptions LabOptionsFromJournal(const fs::path& dir, const std::stri
     if (n["camera_exposure_us"]) o.camera_exposure_us = n["camera_exposure_us"].as<double>();
     if (n["background_seconds"]) o.background_seconds = n["background_seconds"].as<double>();
     if (n["operator"]) o.operator_spec = n["operator"].as<std::string>();
+    if (n["reference"]) o.reference = n["reference"].as<std::string>();
     if (n["poses"])
       for (const auto& p : n["poses"]) o.poses.push_back({p[0].as<double>(), p[1].as<double>()});
   } catch (const YAML::Exception& e) {

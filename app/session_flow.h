@@ -92,6 +92,14 @@ struct LabAcquisitionOptions {
   // with each set-up's JSON on stdin, docs/lab-path.md). ParseOperatorSpec checks it.
   std::string operator_spec = "console";
   int hook_timeout_ms = 600'000;
+  // A rig sweep's point (docs/lab-path.md "Rig sweeps"): the session folder whose step 1 and
+  // background Hall recording this session reuses (orchestrator::SeedSessionFromReference; `plan`
+  // from PlanWithReferenceStep1). Nobody is at the rig (orchestrator::FixedRigOperator: MSM
+  // mounted, camera at C2, never a prompt); a hook receives only the truth request at the end.
+  // No live figures, no previews. Empty: a whole guided session.
+  std::filesystem::path reference;
+  // Last changes to the orchestrator options before the run (a sweep's event observer).
+  std::function<void(orchestrator::OrchestratorOptions&)> adjust_options;
 };
 // "console" -> empty; "hook:CMD" -> CMD. Throws std::invalid_argument naming --operator.
 std::string ParseOperatorSpec(const std::string& spec);
@@ -99,6 +107,11 @@ std::string ParseOperatorSpec(const std::string& spec);
 // session is complete).
 void SendTruthRequest(orchestrator::HookOperator& hook, const std::filesystem::path& out,
                       const orchestrator::ProgressFn& progress);
+// The same without a session's hook operator: runs `hook_command` once with the truth request
+// for out/truth (a rig sweep's point). A failing hook is a warning through `progress` (may be
+// empty); returns true when the hook exited 0.
+bool SendTruthRequest(const std::string& hook_command, int timeout_ms,
+                      const std::filesystem::path& out, const orchestrator::ProgressFn& progress);
 // Runs (or resumes) the session into `out`. The journal keeps what a resume needs: the rig
 // configuration's text, the camera address, the MCU device.
 orchestrator::SessionResult RunLabAcquisition(const std::filesystem::path& out,

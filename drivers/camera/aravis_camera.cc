@@ -6,6 +6,7 @@
 #include <chrono>
 #include <mutex>
 #include <sstream>
+#include <thread>
 #include <utility>
 
 namespace msmcal::camera {
@@ -351,6 +352,8 @@ std::string AravisCameraOptions::Validate() const {
     out << "AravisCameraOptions.device is empty: give an IP address or an Aravis device id";
   } else if (packet_size != 0 && (packet_size < 576 || packet_size > 16384)) {
     out << "AravisCameraOptions.packet_size = " << packet_size << ": must be 0 or in [576, 16384]";
+  } else if (control_wait_ms < 0 || control_wait_ms > 60000) {
+    out << "AravisCameraOptions.control_wait_ms = " << control_wait_ms << ": must be in [0, 60000]";
   }
   return out.str();
 }
@@ -366,6 +369,33 @@ OpenCameraResult OpenAravisCamera(const AravisCameraOptions& options) {
   if (camera == nullptr) {
     result.error = "camera '" + options.device + "' did not answer: " + error.message();
     return result;
+  }
+  if (arv_camera_is_gv_device(camera)) {
+    // A client that died without leaving control (SIGKILL, a crash) holds it until its
+    // heartbeat timeout (3 s by default) runs out; without control the camera ignores our
+    // stream settings and streams to the dead client. Wait for it, then refuse.
+    ArvGvDevice* gv = ARV_GV_DEVICE(arv_camera_get_device(camera));
+    const auto deadline =
+        std::chrono::steady_clock::now() + std::chrono::milliseconds(options.control_wait_ms);
+    while (!arv_gv_device_is_controller(gv)) {
+      GErrorHolder take;
+      if (arv_gv_device_take_control(gv, take.out())) break;
+      if (std::chrono::steady_clock::now() >= deadline) {
+        result.error = "camera '" + options.device +
+                       "': control not granted within control_wait_ms = " +
+                       std::to_string(options.control_wait_ms) +
+                       " ms (another client holds it: a viewer, or a process killed less than a "
+                       "heartbeat timeout ago)";
+        g_object_unref(camera);
+        return result;
+      }
+      std::this_thread::sleep_for(std::chrono::milliseconds(200));
+    }
+    // An acquisition a dead client left running keeps streaming to its address (a camera reads
+    // the stream destination when the acquisition starts): stop it, so that Start() begins a
+    // stream to us. Harmless when stopped.
+    GErrorHolder stop;
+    arv_camera_stop_acquisition(camera, stop.out());
   }
   if (arv_camera_is_gv_device(camera) && options.packet_size > 0) {
     arv_camera_gv_set_packet_size(camera, options.packet_size, error.out());

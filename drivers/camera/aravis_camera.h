@@ -19,6 +19,9 @@ struct AravisCameraOptions {
   // Let Aravis size the socket receive buffer to the frame (ARV_GV_STREAM_SOCKET_BUFFER_AUTO).
   bool auto_socket_buffer = true;
   bool packet_resend = true;
+  // GigE Vision: how long to wait for control when another client holds it (one killed without
+  // leaving control keeps it until its heartbeat timeout, 3 s by default); then the open fails.
+  int control_wait_ms = 5000;
 
   std::string Validate() const;
 };

@@ -23,6 +23,7 @@
 #include "drivers/generator/watchdog.h"
 #include "processing/signal/rig_signals.h"
 #include "sessions/interchange/interchange_io.h"
+#include "sessions/orchestrator/reference_steps.h"
 #include "sessions/store/session_store.h"
 
 namespace msmcal::orchestrator {
@@ -678,6 +679,28 @@ dataset::Recording LoadSessionPlan(const fs::path& dir) {
   return plan;
 }
 
+std::unique_ptr<store::SessionStore> CreateSessionJournal(const OrchestratorOptions& options,
+                                                          const dataset::Recording& plan,
+                                                          const fs::path& dir,
+                                                          const store::Clock& clock) {
+  if (fs::exists(dir) && !fs::is_empty(dir))
+    throw std::runtime_error(dir.string() + ": session folder exists and is not empty");
+  store::SessionMetadata meta;
+  meta.rig_id = options.rig_id;
+  meta.mirror_id = options.mirror_id;
+  meta.note = options.note;
+  meta.description = plan;
+  meta.config_yaml = options.run_config_yaml;
+  auto journal = store::SessionStore::Create(dir, meta, clock);
+  journal->SetMeta(kRunKindKey, options.run_kind);
+  journal->SetMeta(kPlanSessionYamlKey, interchange::FormatSessionYaml(plan));
+  journal->SetMeta(kPlanCameraYamlKey, interchange::FormatCameraYaml(plan.camera));
+  journal->SetTriggers(plan.triggers);
+  for (const char* step : {kStepRigCheck, kStep1, kStepBackground, kStep2, kStepSessionWritten})
+    journal->SetStep(step, store::StepState::kPending);
+  return journal;
+}
+
 namespace {
 
 // The session as a controller (issue 16): RunSession's steps as named methods that read top to
@@ -755,21 +778,7 @@ class SessionController {
         recorded_[plan_file] = f.accepted;
       }
     } else {
-      if (fs::exists(out_) && !fs::is_empty(out_))
-        throw std::runtime_error(out_.string() + ": session folder exists and is not empty");
-      store::SessionMetadata meta;
-      meta.rig_id = options_.rig_id;
-      meta.mirror_id = options_.mirror_id;
-      meta.note = options_.note;
-      meta.description = plan_;
-      meta.config_yaml = options_.run_config_yaml;
-      journal_ = store::SessionStore::Create(out_, meta, clock_);
-      journal_->SetMeta(kRunKindKey, options_.run_kind);
-      journal_->SetMeta(kPlanSessionYamlKey, plan_yaml);
-      journal_->SetMeta(kPlanCameraYamlKey, interchange::FormatCameraYaml(plan_.camera));
-      journal_->SetTriggers(plan_.triggers);
-      for (const char* step : {kStepRigCheck, kStep1, kStepBackground, kStep2, kStepSessionWritten})
-        journal_->SetStep(step, store::StepState::kPending);
+      journal_ = CreateSessionJournal(options_, plan_, out_, clock_);
     }
     fs::create_directories(out_ / "step1");
     fs::create_directories(out_ / "step2");

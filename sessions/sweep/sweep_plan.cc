@@ -90,8 +90,12 @@ void CheckLeaf(const std::string& source, const std::string& key, const YAML::No
     const std::string s = schema.Scalar();
     if (s == "true" || s == "false") {
       if (!IsBool(value)) Fail(source, value, key + ": expected true or false");
-    } else if (!IsNumber(value)) {
-      Fail(source, value, key + ": expected a number");
+    } else if (IsNumber(schema)) {
+      if (!IsNumber(value)) Fail(source, value, key + ": expected a number");
+    } else if (!value.IsScalar() || value.Scalar() != s) {
+      // A text field (a rig file's host, camera kind, channel role) is not a sweep option; the
+      // plan's self-contained copy (SweepPlanToYaml) carries it with its default value.
+      Fail(source, value, key + ": a text field, not varied by a sweep (its value is '" + s + "')");
     }
     return;
   }

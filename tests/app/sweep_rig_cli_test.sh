@@ -5,7 +5,8 @@
 # its frequency window, one whose amplitude exceeds max_vpp and one whose trigger density breaks
 # the duty limit are refused naming the point, the field, the value and the limit, with nothing
 # created and nothing contacted (the test runs in a network namespace where nothing listens).
-# The simulated sweep's options are refused for a rig sweep (an unknown rig file field).
+# The simulated sweep's options are refused for a rig sweep (an unknown rig file field), and so is
+# a console operator (nobody is at the rig). Running the points: cli.twin_rig_sweep.
 set -euo pipefail
 msmcal="$1"
 src="$2"
@@ -26,7 +27,7 @@ refuse() {  # name, sweep text, patterns the message must contain...
   printf '%s\n' "$text" > "$dir/$name.yaml"
   mkdir -p "$dir/ref"
   if "$msmcal" sweep "$dir/$name.yaml" --rig "$rig" --reference "$dir/ref" --out "$dir/$name" \
-      > "$dir/$name.out" 2>&1; then
+      ${extra:-} > "$dir/$name.out" 2>&1; then
     echo "FAIL: $name: expected a refusal"; cat "$dir/$name.out"; exit 1
   fi
   cat "$dir/$name.out"
@@ -53,6 +54,9 @@ refuse duty 'axes: {generators.signals.trigger.pulse_width_s: [1.0e-6, 1.0e-3]}'
   "generators.signals.trigger.pulse_width_s = 1.0e-3" "max_duty"
 refuse unknown 'axes: {mirror.fast.frequency_hz: [205]}' \
   "mirror.fast.frequency_hz: unknown rig file field"
+# Nobody is at the rig during a rig sweep: no console operator.
+extra="--operator console" refuse console 'axes: {generators.signals.drive.fast.frequency_hz: [205]}' \
+  "--operator = 'console'" "hook:CMD"
 # The simulated sweep is unchanged: no --rig, its own options.
 "$msmcal" sweep "$src/config/sweep-example.yaml" --out "$dir/sim" --list > "$dir/sim.out"
 grep -q "^msmcal sweep: 16 points" "$dir/sim.out" || { cat "$dir/sim.out"; exit 1; }

@@ -7,6 +7,7 @@
 #include <filesystem>
 #include <fstream>
 #include <limits>
+#include <memory>
 #include <opencv2/core.hpp>
 #include <set>
 #include <sstream>
@@ -230,6 +231,39 @@ TEST(SweepPlan, SelfContainedCopyRoundTripsAndChangesAreNamed) {
   std::string more = text;
   more.replace(more.find("[18, 30]"), 8, "[18, 30, 40]");
   EXPECT_NE(ComparePlans(copy, ParseSimPlan(more, "new.yaml", ".")).find("12"), std::string::npos);
+}
+
+// Options with text fields (a rig file's host, camera kind): not varied by a sweep, but the
+// plan's self-contained copy carries them (a rig sweep's DIR/sweep.yaml must read back).
+class TextFieldParameters : public SweepParameters {
+ public:
+  std::string Noun() const override { return "rig file field"; }
+  std::string PathHint() const override { return ""; }
+  std::string DefaultsYaml() const override {
+    return "unit1: {host: 127.0.0.1, port: 15025}\ncamera: {kind: gige, rate: 4}\n";
+  }
+  std::string LoadFile(const std::filesystem::path&) const override { return DefaultsYaml(); }
+  std::string Resolve(const std::string& yaml, const std::string&, int repeat,
+                      uint64_t* seed) const override {
+    if (seed) *seed = static_cast<uint64_t>(repeat);
+    return yaml;
+  }
+};
+
+TEST(SweepPlan, TextFieldsAreCarriedByTheCopyButNeverVaried) {
+  const auto params = std::make_shared<const TextFieldParameters>();
+  const SweepPlan plan = ParseSweepPlan("axes: {camera.rate: [4, 8]}\n", "plan.yaml", ".", params);
+  const SweepPlan copy = ParseSweepPlan(SweepPlanToYaml(plan), "sweep.yaml", ".", params);
+  EXPECT_EQ(ComparePlans(copy, plan), "");
+  try {
+    (void)ParseSweepPlan("base: {unit1: {host: 10.0.0.2}}\naxes: {camera.rate: [4]}\n", "plan.yaml",
+                         ".", params);
+    ADD_FAILURE() << "a changed text field was accepted";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("plan.yaml:1: base.unit1.host: a text field"),
+              std::string::npos)
+        << e.what();
+  }
 }
 
 TEST(SweepState, ResumeDecisionFollowsWhatIsOnDisk) {
