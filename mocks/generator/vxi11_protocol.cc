@@ -79,8 +79,7 @@ std::string XdrReader::GetOpaque(uint32_t max_length) {
   const uint64_t padded = uint64_t{n} + Padding(n);
   if (remaining() < padded) {
     throw Vxi11DecodeError("XDR: opaque at offset " + std::to_string(at) + " of " +
-                           std::to_string(n) + " bytes, " + std::to_string(remaining()) +
-                           " left");
+                           std::to_string(n) + " bytes, " + std::to_string(remaining()) + " left");
   }
   std::string out(in_.substr(pos_, n));
   pos_ += padded;

@@ -17,8 +17,8 @@
 namespace msmcal::sim {
 
 struct Vxi11ServerOptions {
-  int core_port = 0;         // 0: any free port
-  int abort_port = 0;        // 0: any free port
+  int core_port = 0;          // 0: any free port
+  int abort_port = 0;         // 0: any free port
   int portmapper_port = 111;  // -1: no portmapper
 };
 

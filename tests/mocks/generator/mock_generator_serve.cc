@@ -25,9 +25,9 @@ int main(int argc, char** argv) {
     vxi11 = std::make_unique<msmcal::sim::Vxi11Server>(unit, o);
     vxi11->Start();
     if (!vxi11->portmapper_error().empty()) std::cerr << vxi11->portmapper_error() << std::endl;
-    std::cout << "vxi11 core 127.0.0.1:" << vxi11->core_port() << " abort 127.0.0.1:"
-              << vxi11->abort_port() << " portmapper 127.0.0.1:" << vxi11->portmapper_port()
-              << std::endl;
+    std::cout << "vxi11 core 127.0.0.1:" << vxi11->core_port()
+              << " abort 127.0.0.1:" << vxi11->abort_port()
+              << " portmapper 127.0.0.1:" << vxi11->portmapper_port() << std::endl;
   }
   std::string line;
   while (std::getline(std::cin, line)) {

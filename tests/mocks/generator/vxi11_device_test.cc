@@ -42,9 +42,8 @@ class Vxi11DeviceTest : public ::testing::Test {
   }
 
   int32_t Link(uint64_t connection = 1, bool lock = false) {
-    const CreateLinkResp r =
-        DecodeCreateLinkResp(Call(kCreateLink, EncodeCreateLinkParms({7, lock, 0, "inst0"}),
-                                  connection));
+    const CreateLinkResp r = DecodeCreateLinkResp(
+        Call(kCreateLink, EncodeCreateLinkParms({7, lock, 0, "inst0"}), connection));
     EXPECT_EQ(r.error, kNoError);
     EXPECT_EQ(r.abort_port, 1025u);
     EXPECT_EQ(r.max_recv_size, kMaxWriteBytes);
@@ -52,8 +51,8 @@ class Vxi11DeviceTest : public ::testing::Test {
   }
 
   DeviceWriteResp Write(int32_t link, const std::string& data, int32_t flags = kFlagEnd) {
-    return DecodeDeviceWriteResp(Call(kDeviceWrite, EncodeDeviceWriteParms({link, 1000, 0, flags,
-                                                                            data})));
+    return DecodeDeviceWriteResp(
+        Call(kDeviceWrite, EncodeDeviceWriteParms({link, 1000, 0, flags, data})));
   }
 
   DeviceReadResp Read(int32_t link, uint32_t size = 4096, int32_t flags = 0, int32_t term = 0) {

@@ -42,7 +42,8 @@ TEST(Vxi11Xdr, UintsBigEndianOpaquePadded) {
   w.PutOpaque("inst0");
   w.PutOpaque("");
   w.PutOpaque("abcd");
-  EXPECT_EQ(w.bytes(), Hex("000607afffffffff0000000100000005696e737430000000000000000000000461626364"));
+  EXPECT_EQ(w.bytes(),
+            Hex("000607afffffffff0000000100000005696e737430000000000000000000000461626364"));
   XdrReader r(w.bytes());
   EXPECT_EQ(r.GetUint(), 0x0607AFu);
   EXPECT_EQ(r.GetInt(), -1);
@@ -57,9 +58,9 @@ TEST(Vxi11Xdr, UintsBigEndianOpaquePadded) {
 TEST(Vxi11Xdr, RejectsShortOverlongAndBadBool) {
   EXPECT_THROW(XdrReader(Hex("000001")).GetUint(), Vxi11DecodeError);
   EXPECT_THROW(XdrReader(Hex("00000002")).GetBool(), Vxi11DecodeError);
-  EXPECT_THROW(XdrReader(Hex("0000000561626364")).GetOpaque(16), Vxi11DecodeError);  // short
+  EXPECT_THROW(XdrReader(Hex("0000000561626364")).GetOpaque(16), Vxi11DecodeError);    // short
   EXPECT_THROW(XdrReader(Hex("000000056162636465")).GetOpaque(16), Vxi11DecodeError);  // no pad
-  EXPECT_THROW(XdrReader(Hex("0000001100")).GetOpaque(16), Vxi11DecodeError);  // over max
+  EXPECT_THROW(XdrReader(Hex("0000001100")).GetOpaque(16), Vxi11DecodeError);          // over max
   EXPECT_THROW(XdrReader(Hex("ffffffff")).GetOpaque(0xffffffffu), Vxi11DecodeError);
 }
 
@@ -119,9 +120,11 @@ TEST(Vxi11Rpc, ReplyHeadersMatchRpcPy) {
   EXPECT_EQ(EncodeAcceptedReply(9, kGarbageArgs),
             Hex("000000090000000100000000000000000000000000000004"));
   EXPECT_EQ(EncodeProgMismatchReply(9, 1, 1),
-            Hex("00000009000000010000000000000000000000000000000200000001""00000001"));
+            Hex("00000009000000010000000000000000000000000000000200000001"
+                "00000001"));
   // MSG_DENIED, RPC_MISMATCH, low 2, high 2.
-  EXPECT_EQ(EncodeRpcMismatchReply(9), Hex("00000009000000010000000100000000""0000000200000002"));
+  EXPECT_EQ(EncodeRpcMismatchReply(9), Hex("00000009000000010000000100000000"
+                                           "0000000200000002"));
   const RpcReply r = DecodeRpcReply(EncodeAcceptedReply(5, kSuccess, EncodeDeviceError(4)));
   EXPECT_EQ(r.xid, 5u);
   EXPECT_TRUE(r.accepted);
@@ -143,8 +146,7 @@ TEST(Vxi11Rpc, MalformedCallsThrowButKeepTheXid) {
 }
 
 TEST(Vxi11Results, EncodingsAreByteExact) {
-  EXPECT_EQ(EncodeCreateLinkResp({0, 1, 1024, 1u << 20}),
-            Hex("00000000000000010000040000100000"));
+  EXPECT_EQ(EncodeCreateLinkResp({0, 1, 1024, 1u << 20}), Hex("00000000000000010000040000100000"));
   EXPECT_EQ(EncodeDeviceWriteResp({0, 6}), Hex("0000000000000006"));
   // "AB\n" with reason END: length 3, one pad byte.
   EXPECT_EQ(EncodeDeviceReadResp({0, kReasonEnd, "AB\n"}), Hex("00000000000000040000000341420a00"));
@@ -158,7 +160,11 @@ TEST(Vxi11Results, EncodingsAreByteExact) {
 TEST(Vxi11RecordMarking, ReassemblesFragmentsFedByteByByte) {
   EXPECT_EQ(RecordMark("abcd"), Hex("8000000461626364"));
   // Two records, the first in two fragments (first not last).
-  const std::string stream = Hex("00000002" "6162" "80000001" "63") + RecordMark("xyz");
+  const std::string stream = Hex("00000002"
+                                 "6162"
+                                 "80000001"
+                                 "63") +
+                             RecordMark("xyz");
   RecordAssembler a(64);
   std::vector<std::string> got;
   for (char c : stream) {

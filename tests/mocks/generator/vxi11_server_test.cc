@@ -100,8 +100,8 @@ TEST(Vxi11Server, PortmapperCoreAndBadStreams) {
   }
   // ...and the server serves the next one.
   Socket s(SOCK_STREAM, server.core_port());
-  s.Send(RecordMark(Call(1, kCoreProgram, 1, kCreateLink, EncodeCreateLinkParms({1, 0, 0,
-                                                                                  "inst0"}))));
+  s.Send(
+      RecordMark(Call(1, kCoreProgram, 1, kCreateLink, EncodeCreateLinkParms({1, 0, 0, "inst0"}))));
   const CreateLinkResp link = DecodeCreateLinkResp(DecodeRpcReply(s.Record()).results);
   EXPECT_EQ(link.error, kNoError);
   EXPECT_EQ(link.abort_port, static_cast<uint32_t>(server.abort_port()));
@@ -111,8 +111,8 @@ TEST(Vxi11Server, PortmapperCoreAndBadStreams) {
   s.Send(RecordMark(Call(3, kCoreProgram, 1, kDeviceRead,
                          EncodeDeviceReadParms({link.link_id, 4096, 1000, 0, 0, 0}))));
   EXPECT_EQ(s.Record(),
-            EncodeAcceptedReply(3, kSuccess,
-                                EncodeDeviceReadResp({0, kReasonEnd, UnitOptions{}.identity + "\n"})));
+            EncodeAcceptedReply(
+                3, kSuccess, EncodeDeviceReadResp({0, kReasonEnd, UnitOptions{}.identity + "\n"})));
   server.Stop();
 }
 
