@@ -110,9 +110,9 @@ TEST_F(Vxi11DeviceTest, ReadHonoursRequestSizeAndTermChar) {
 TEST_F(Vxi11DeviceTest, MessageSpansWritesUntilEnd) {
   const int32_t link = Link();
   // A definite-length block split across writes; '\n' inside it does not end the message.
-  // 8 points (the 33520B's minimum): 0x0A0A, then 0x4141.
+  // 8 points (the 33520B's minimum) of 0x0A0A.
   EXPECT_EQ(Write(link, "SOUR1:DATA:ARB:DAC W,#216" + std::string(8, '\n'), 0).error, kNoError);
-  EXPECT_EQ(Write(link, std::string(8, 'A'), 0).error, kNoError);
+  EXPECT_EQ(Write(link, std::string(8, '\n'), 0).error, kNoError);
   EXPECT_EQ(Write(link, ";:SYST:ERR?", kFlagEnd).error, kNoError);
   EXPECT_EQ(Read(link).data, "+0,\"No error\"\n");
   Write(link, "SOUR1:DATA:ATTR:POIN? W\nSOUR1:FUNC?\n");  // two messages, two replies
