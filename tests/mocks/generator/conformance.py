@@ -99,6 +99,9 @@ def run_vxi11_pyvisa(port):
     check("raw sees VXI-11 state", raw.query("SOUR1:FREQ?;VOLT?"),
           "+4.3210000000000E+03;+7.5000000000000E-01")
     raw.write("SOUR2:FREQ 777")
+    # The two wires are two connections: the raw write has no reply, so *OPC? on the same socket
+    # is what says it was executed before the VXI-11 query.
+    check("raw *OPC?", raw.query("*OPC?"), "1")
     check("VXI-11 sees raw state", inst.query("SOUR2:FREQ?").rstrip("\n"),
           "+7.7700000000000E+02")
     # A reply larger than one device_read: pyvisa-py reads it in chunks until END.
