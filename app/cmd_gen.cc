@@ -6,6 +6,7 @@
 //   msmcal mock generators --rig CONFIG [--unlocked] [--no-trigger-cable]
 //                          [--fault unitN:SPEC]... [--second-connection serve|queue|close]
 //   msmcal mock generator --port P [--idn TEXT] [--fault SPEC]... [--second-connection MODE]
+//                         [--vxi11 [--vxi11-core-port N] [--portmapper-port N]]
 // Faults and the second-connection modes: mocks/generator/mock_server.h, docs/fault-campaign.md.
 #include <signal.h>
 
@@ -25,6 +26,7 @@
 #include "drivers/generator/safe_state.h"
 #include "drivers/generator/watchdog.h"
 #include "mocks/generator/mock_server.h"
+#include "mocks/generator/vxi11_server.h"
 
 namespace {
 
@@ -185,6 +187,9 @@ struct MockArgs {
   std::string idn;
   std::vector<std::string> faults;
   std::string second_connection = "serve";
+  bool vxi11 = false;
+  int vxi11_core_port = 0;
+  int portmapper_port = 111;
 };
 
 // Prints what a mock unit saw, on stop: the fault campaign reads it (docs/fault-campaign.md).
@@ -239,7 +244,26 @@ void ServeGenerator(const MockArgs& args) {
   for (const std::string& f : args.faults) server.InjectFault(msmcal::sim::ParseFault(f));
   server.Start();
   std::cout << "listening on 127.0.0.1:" << server.port() << std::endl;
+  // VXI-11 on the same unit (one instrument, both wires): docs/protocols/generator-scpi.md.
+  std::unique_ptr<msmcal::sim::Vxi11Server> vxi11;
+  if (args.vxi11) {
+    msmcal::sim::Vxi11ServerOptions o;
+    o.core_port = args.vxi11_core_port;
+    o.portmapper_port = args.portmapper_port;
+    vxi11 = std::make_unique<msmcal::sim::Vxi11Server>(unit, o);
+    vxi11->Start();
+    if (!vxi11->portmapper_error().empty()) {
+      std::cerr << "warning: " << vxi11->portmapper_error() << std::endl;
+    }
+    std::cout << "VXI-11 core channel on 127.0.0.1:" << vxi11->core_port()
+              << ", abort channel on 127.0.0.1:" << vxi11->abort_port();
+    if (vxi11->portmapper_port() > 0) {
+      std::cout << ", portmapper on 127.0.0.1:" << vxi11->portmapper_port();
+    }
+    std::cout << std::endl;
+  }
   stop.Wait();
+  if (vxi11) vxi11->Stop();
   PrintServerSummary("generator", server);
 }
 
@@ -277,7 +301,22 @@ void AddMockGeneratorCommands(CLI::App& app) {
   add_fault_options(one,
                     "Inject a fault (repeatable; off by default): KIND[,after=N][,match=TEXT]"
                     "[,ms=MS], KIND drop|freeze|delay|garbage|drop-mid-reply");
-  one->callback([args] { ServeGenerator(*args); });
+  one->add_flag("--vxi11", args->vxi11,
+                "Also serve VXI-11 (core and abort channels, and a portmapper on port 111 when it "
+                "can be bound: root or `unshare -rn`), fed into the same unit");
+  one->add_option("--vxi11-core-port", args->vxi11_core_port,
+                  "TCP port of the VXI-11 core channel (0 = any free port; the portmapper tells "
+                  "clients which)")
+      ->check(CLI::Range(0, 65535));
+  one->add_option("--portmapper-port", args->portmapper_port,
+                  "TCP and UDP port of the portmapper (111 as on the instrument; -1 = none)")
+      ->check(CLI::Range(-1, 65535));
+  one->callback([args] {
+    if (!args->vxi11 && (args->vxi11_core_port != 0 || args->portmapper_port != 111)) {
+      throw std::invalid_argument("--vxi11-core-port and --portmapper-port need --vxi11");
+    }
+    ServeGenerator(*args);
+  });
 }
 
 }  // namespace

@@ -39,6 +39,34 @@ bool IsBlockStart(std::string_view text, size_t i) {
          std::isdigit(static_cast<unsigned char>(text[i + 1]));
 }
 
+// TrimWs that never trims into a definite-length block: a block's last bytes are data even when
+// they are whitespace (an int16 sample 0x200A ends in ' ', '\n').
+std::string_view TrimWsOutsideBlocks(std::string_view t) {
+  while (!t.empty() && std::isspace(static_cast<unsigned char>(t.front()))) t.remove_prefix(1);
+  size_t keep = 0;  // the end of the last complete block
+  bool quoted = false;
+  char quote = 0;
+  for (size_t i = 0; i < t.size(); ++i) {
+    const char c = t[i];
+    if (quoted) {
+      if (c == quote) quoted = false;
+      continue;
+    }
+    if (c == '"' || c == '\'') {
+      quoted = true;
+      quote = c;
+    } else if (IsBlockStart(t, i)) {
+      const long size = BlockSize(t, i);
+      if (size > 0) {
+        i += static_cast<size_t>(size) - 1;
+        keep = i + 1;
+      }
+    }
+  }
+  while (t.size() > keep && std::isspace(static_cast<unsigned char>(t.back()))) t.remove_suffix(1);
+  return t;
+}
+
 }  // namespace
 
 std::string Upper(std::string_view text) {
@@ -87,7 +115,7 @@ SplitResult SplitProgramMessage(std::string_view message) {
   if (!result.failure) pieces.push_back(message.substr(start));
 
   for (size_t p = 0; p < pieces.size(); ++p) {
-    std::string_view unit_text = TrimWs(pieces[p]);
+    std::string_view unit_text = TrimWsOutsideBlocks(pieces[p]);
     if (unit_text.empty()) {
       if (p + 1 == pieces.size() && p > 0) break;  // trailing ';'
       if (!result.failure) result.failure = ParseFailure{-102, "Syntax error"};
@@ -97,7 +125,7 @@ SplitResult SplitProgramMessage(std::string_view message) {
     size_t h = 0;
     while (h < unit_text.size() && !std::isspace(static_cast<unsigned char>(unit_text[h]))) ++h;
     std::string_view header = unit_text.substr(0, h);
-    std::string_view rest = TrimWs(unit_text.substr(h));
+    std::string_view rest = TrimWsOutsideBlocks(unit_text.substr(h));
     CommandUnit unit;
     if (header.front() == ':') {
       unit.absolute = true;
@@ -150,7 +178,7 @@ SplitResult SplitProgramMessage(std::string_view message) {
           }
           if (c != ',') continue;
         }
-        std::string_view param = TrimWs(rest.substr(ps, i - ps));
+        std::string_view param = TrimWsOutsideBlocks(rest.substr(ps, i - ps));
         if (param.empty()) {
           ok = false;
           break;

@@ -45,6 +45,19 @@ TEST(ScpiParserTest, BlocksMayHoldSeparatorsAndNewlines) {
   EXPECT_FALSE(FindMessageEnd("DATA:ARB:DAC a,#210\n12"));
 }
 
+TEST(ScpiParserTest, BlockEndingInWhitespaceBytesKeepsThem) {
+  // A last sample 0x200A ends the block in ' ', '\n': data, not whitespace to trim (found with
+  // the VXI-11 tests: the mock answered -161 "Invalid block data").
+  const SplitResult r = SplitProgramMessage("DATA:ARB:DAC a,#14AB \n  ;:SYST:ERR?");
+  ASSERT_FALSE(r.failure);
+  ASSERT_EQ(r.units.size(), 2u);
+  ASSERT_EQ(r.units[0].params.size(), 2u);
+  EXPECT_EQ(r.units[0].params[1], "#14AB \n");
+  const SplitResult last = SplitProgramMessage("DATA:ARB:DAC a,#14AB\n\n");
+  ASSERT_FALSE(last.failure);
+  EXPECT_EQ(last.units.at(0).params.at(1), "#14AB\n\n");
+}
+
 TEST(ScpiParserTest, UnitsAndSpecialValues) {
   EXPECT_DOUBLE_EQ(*ParseNumericWithUnit("1 KHZ", "HZ"), 1e3);
   EXPECT_DOUBLE_EQ(*ParseNumericWithUnit("2MHZ", "HZ"), 2e6);  // M before HZ is mega
