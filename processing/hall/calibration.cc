@@ -12,7 +12,8 @@ namespace msmcal::hall {
 std::string HallCalibrationOptions::Validate() const {
   std::ostringstream s;
   if (const std::string e = time_base.Validate(); !e.empty()) s << "time_base: " << e;
-  else if (const std::string d = driven_periods.Validate(); !d.empty()) s << "driven_periods: " << d;
+  else if (const std::string d = driven_periods.Validate(); !d.empty())
+    s << "driven_periods: " << d;
   else if (const std::string p = profile.Validate(); !p.empty()) s << "profile: " << p;
   else if (!(delta_t_max_s > delta_t_min_s)) s << "delta_t window must satisfy max > min";
   else if (repetitions < 1) s << "repetitions must be >= 1, got " << repetitions;
@@ -95,8 +96,9 @@ HallCalibrationResult CalibrateHall(const HallCalibrationInput& in, const HallCa
   MapReadings(*in.background, r.background_time_base, &background.t, &background.b);
   // The poses are the scan's: the actual recording's stretches with a drive off (neutral and
   // fast-only frames of a lab session) are left out before anything is profiled.
-  r.actual_periods = SelectDrivenPeriods(actual.t, actual.b, in.pattern_period_s, in.fast_frequency_hz,
-                                         in.slow_frequency_hz, o.driven_periods);
+  r.actual_periods =
+      SelectDrivenPeriods(actual.t, actual.b, in.pattern_period_s, in.fast_frequency_hz,
+                          in.slow_frequency_hz, o.driven_periods);
   if (r.actual_periods.readings_used < actual.t.size()) {
     Mapped kept;
     for (size_t i = 0; i < actual.t.size(); ++i) {
@@ -107,10 +109,11 @@ HallCalibrationResult CalibrateHall(const HallCalibrationInput& in, const HallCa
     actual = std::move(kept);
   }
   if (actual.t.size() < 16)
-    throw std::invalid_argument("hall/actual.csv: " + std::to_string(r.actual_periods.driven) + " of " +
-                                std::to_string(r.actual_periods.periods) +
-                                " pattern periods show both drives running; the actual recording must "
-                                "be taken while the mirror scans");
+    throw std::invalid_argument(
+        "hall/actual.csv: " + std::to_string(r.actual_periods.driven) + " of " +
+        std::to_string(r.actual_periods.periods) +
+        " pattern periods show both drives running; the actual recording must "
+        "be taken while the mirror scans");
 
   // Profiles of random subsets must use the recordings' own sample period (a subset's spacing
   // would cut the Fourier series below the fast drive).
