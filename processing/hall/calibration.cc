@@ -196,7 +196,23 @@ HallCalibrationResult CalibrateHall(const HallCalibrationInput& in, const HallCa
   }
   r.foreground = MakeForeground(actual, background, in.pattern_period_s, profile);
   const FieldFunction f_all = [&](double t) { return r.foreground.Value(t); };
-  r.final_fit = FitHallModel(r.best, in.poses, f_all, fit);
+  // The fast axis is nearly a sine: half its period away, dt has an alias that a field model
+  // matches by flipping its coefficients. The model whose dt varies least over the splits (the
+  // field models only: the sine model's dt is not identifiable) brackets the final fit's dt
+  // to within a quarter of the fast period of its mean.
+  HallFitOptions final_fit = fit;
+  const ModelStats* steady = nullptr;
+  for (const auto& s : r.table)
+    if (s.kind != HallModelKind::kSine && (!steady || s.delta_t_std_s < steady->delta_t_std_s))
+      steady = &s;
+  if (steady && in.fast_frequency_hz > 0 && o.repetitions > 1) {
+    const double quarter = 0.25 / in.fast_frequency_hz;
+    if (steady->delta_t_std_s < 0.25 * quarter) {
+      final_fit.delta_t_min_s = std::max(fit.delta_t_min_s, steady->delta_t_mean_s - quarter);
+      final_fit.delta_t_max_s = std::min(fit.delta_t_max_s, steady->delta_t_mean_s + quarter);
+    }
+  }
+  r.final_fit = FitHallModel(r.best, in.poses, f_all, final_fit);
   return r;
 }
 
