@@ -12,6 +12,8 @@ namespace msmcal::hall {
 std::string HallCalibrationOptions::Validate() const {
   std::ostringstream s;
   if (const std::string e = time_base.Validate(); !e.empty()) s << "time_base: " << e;
+  else if (const std::string d = driven_periods.Validate(); !d.empty())
+    s << "driven_periods: " << d;
   else if (const std::string p = profile.Validate(); !p.empty()) s << "profile: " << p;
   else if (!(delta_t_max_s > delta_t_min_s)) s << "delta_t window must satisfy max > min";
   else if (repetitions < 1) s << "repetitions must be >= 1, got " << repetitions;
@@ -92,6 +94,26 @@ HallCalibrationResult CalibrateHall(const HallCalibrationInput& in, const HallCa
   Mapped actual, background;
   MapReadings(*in.actual, r.actual_time_base, &actual.t, &actual.b);
   MapReadings(*in.background, r.background_time_base, &background.t, &background.b);
+  // The poses are the scan's: the actual recording's stretches with a drive off (neutral and
+  // fast-only frames of a lab session) are left out before anything is profiled.
+  r.actual_periods =
+      SelectDrivenPeriods(actual.t, actual.b, in.pattern_period_s, in.fast_frequency_hz,
+                          in.slow_frequency_hz, o.driven_periods);
+  if (r.actual_periods.readings_used < actual.t.size()) {
+    Mapped kept;
+    for (size_t i = 0; i < actual.t.size(); ++i) {
+      if (!r.actual_periods.use[i]) continue;
+      kept.t.push_back(actual.t[i]);
+      kept.b.push_back(actual.b[i]);
+    }
+    actual = std::move(kept);
+  }
+  if (actual.t.size() < 16)
+    throw std::invalid_argument(
+        "hall/actual.csv: " + std::to_string(r.actual_periods.driven) + " of " +
+        std::to_string(r.actual_periods.periods) +
+        " pattern periods show both drives running; the actual recording must "
+        "be taken while the mirror scans");
 
   // Profiles of random subsets must use the recordings' own sample period (a subset's spacing
   // would cut the Fourier series below the fast drive).
@@ -108,73 +130,106 @@ HallCalibrationResult CalibrateHall(const HallCalibrationInput& in, const HallCa
   std::mt19937_64 rng(o.seed);
   const size_t n = in.poses.size();
   const size_t n_train = std::clamp<size_t>(static_cast<size_t>(std::lround(o.train_fraction * n)), 1, n - 1);
-  std::vector<std::vector<Eigen::Vector3d>> test_rms(o.models.size()), train_rms(o.models.size());
-  std::vector<std::vector<double>> dts(o.models.size());
+  // The splits (poses and the foregrounds of their readings), kept for a second pass of fits.
+  struct Split {
+    std::vector<PoseSample> train, test;
+    Foreground fg_train, fg_test;
+  };
+  std::vector<Split> splits;
+  splits.reserve(static_cast<size_t>(o.repetitions));
   Mapped a_train, a_test, b_train, b_test;
-  std::vector<bool> usable(o.models.size(), true);
   for (int rep = 0; rep < o.repetitions; ++rep) {
     std::vector<size_t> idx(n);
     std::iota(idx.begin(), idx.end(), 0);
     for (size_t i = n - 1; i > 0; --i) std::swap(idx[i], idx[static_cast<size_t>(Uniform(rng) * (i + 1))]);
-    std::vector<PoseSample> train, test;
-    for (size_t i = 0; i < n; ++i) (i < n_train ? train : test).push_back(in.poses[idx[i]]);
+    Split sp;
+    for (size_t i = 0; i < n; ++i) (i < n_train ? sp.train : sp.test).push_back(in.poses[idx[i]]);
     SplitReadings(actual, o.train_fraction, rng, &a_train, &a_test);
     SplitReadings(background, o.train_fraction, rng, &b_train, &b_test);
-    const Foreground fg_train = MakeForeground(a_train, b_train, in.pattern_period_s, profile);
-    const Foreground fg_test = MakeForeground(a_test, b_test, in.pattern_period_s, profile);
-    const FieldFunction f_train = [&](double t) { return fg_train.Value(t); };
-    const FieldFunction f_test = [&](double t) { return fg_test.Value(t); };
+    sp.fg_train = MakeForeground(a_train, b_train, in.pattern_period_s, profile);
+    sp.fg_test = MakeForeground(a_test, b_test, in.pattern_period_s, profile);
+    splits.push_back(std::move(sp));
+  }
+  // Every usable model on every split with the dt window of `window`: r.table, r.best.
+  std::vector<bool> usable(o.models.size(), true);
+  auto compare = [&](const HallFitOptions& window, bool progress) {
+    std::vector<std::vector<Eigen::Vector3d>> test_rms(o.models.size()), train_rms(o.models.size());
+    std::vector<std::vector<double>> dts(o.models.size());
+    for (const Split& sp : splits) {
+      const FieldFunction f_train = [&](double t) { return sp.fg_train.Value(t); };
+      const FieldFunction f_test = [&](double t) { return sp.fg_test.Value(t); };
+      for (size_t m = 0; m < o.models.size(); ++m) {
+        if (!usable[m]) continue;
+        HallFitResult fitted;
+        try {
+          fitted = FitHallModel(o.models[m], sp.train, f_train, window);
+        } catch (const std::invalid_argument& e) {
+          // Too many parameters for a training split: the comparison goes on without the model.
+          usable[m] = false;
+          r.skipped_models.push_back(std::string(ToString(o.models[m])) + ": " + e.what() + " (" +
+                                     std::to_string(sp.train.size()) + " poses per training split)");
+          continue;
+        }
+        train_rms[m].push_back(fitted.train_rms);
+        test_rms[m].push_back(EvaluateRms(fitted.model, sp.test, f_test));
+        dts[m].push_back(fitted.model.delta_t_s);
+      }
+      if (progress && o.on_repetition)
+        o.on_repetition(static_cast<int>(&sp - splits.data()) + 1, o.repetitions);
+    }
+    if (std::none_of(usable.begin(), usable.end(), [](bool u) { return u; })) {
+      std::string why;
+      for (const auto& s : r.skipped_models) why += "; " + s;
+      throw std::invalid_argument("CalibrateHall: no model can be fitted with " + std::to_string(n) +
+                                  " mirror poses" + why);
+    }
+    r.table.clear();
+    double best_score = 1e300;
     for (size_t m = 0; m < o.models.size(); ++m) {
       if (!usable[m]) continue;
-      HallFitResult fitted;
-      try {
-        fitted = FitHallModel(o.models[m], train, f_train, fit);
-      } catch (const std::invalid_argument& e) {
-        // Too many parameters for a training split: the comparison goes on without the model.
-        usable[m] = false;
-        r.skipped_models.push_back(std::string(ToString(o.models[m])) + ": " + e.what() + " (" +
-                                   std::to_string(train.size()) + " poses per training split)");
-        continue;
+      ModelStats s;
+      s.kind = o.models[m];
+      const double reps = static_cast<double>(o.repetitions);
+      for (int k = 0; k < o.repetitions; ++k) {
+        s.test_rms_mean += test_rms[m][k] / reps;
+        s.train_rms_mean += train_rms[m][k] / reps;
+        s.delta_t_mean_s += dts[m][k] / reps;
       }
-      train_rms[m].push_back(fitted.train_rms);
-      test_rms[m].push_back(EvaluateRms(fitted.model, test, f_test));
-      dts[m].push_back(fitted.model.delta_t_s);
+      for (int k = 0; k < o.repetitions; ++k) {
+        s.test_rms_std += (test_rms[m][k] - s.test_rms_mean).cwiseAbs2() / reps;
+        s.delta_t_std_s += (dts[m][k] - s.delta_t_mean_s) * (dts[m][k] - s.delta_t_mean_s) / reps;
+      }
+      s.test_rms_std = s.test_rms_std.cwiseSqrt();
+      s.delta_t_std_s = std::sqrt(s.delta_t_std_s);
+      const double score = s.test_rms_mean.cwiseQuotient(scale).squaredNorm();
+      if (score < best_score) {
+        best_score = score;
+        r.best = s.kind;
+      }
+      r.table.push_back(s);
     }
-    if (o.on_repetition) o.on_repetition(rep + 1, o.repetitions);
-  }
-  if (std::none_of(usable.begin(), usable.end(), [](bool u) { return u; })) {
-    std::string why;
-    for (const auto& s : r.skipped_models) why += "; " + s;
-    throw std::invalid_argument("CalibrateHall: no model can be fitted with " + std::to_string(n) +
-                                " mirror poses" + why);
-  }
-  double best_score = 1e300;
-  for (size_t m = 0; m < o.models.size(); ++m) {
-    if (!usable[m]) continue;
-    ModelStats s;
-    s.kind = o.models[m];
-    const double reps = static_cast<double>(o.repetitions);
-    for (int k = 0; k < o.repetitions; ++k) {
-      s.test_rms_mean += test_rms[m][k] / reps;
-      s.train_rms_mean += train_rms[m][k] / reps;
-      s.delta_t_mean_s += dts[m][k] / reps;
+  };
+  compare(fit, /*progress=*/true);
+  // The fast axis is nearly a sine: half its period away, dt has an alias that a field model
+  // matches by flipping its coefficients. The field model whose dt varies least over the splits
+  // (the sine model's dt is not identifiable) brackets dt to within a quarter of the fast period
+  // of its mean, for the splits (a second pass) and the final fit.
+  HallFitOptions bracketed = fit;
+  const ModelStats* steady = nullptr;
+  for (const auto& s : r.table)
+    if (s.kind != HallModelKind::kSine && (!steady || s.delta_t_std_s < steady->delta_t_std_s))
+      steady = &s;
+  if (steady && in.fast_frequency_hz > 0 && o.repetitions > 1) {
+    const double quarter = 0.25 / in.fast_frequency_hz;
+    if (steady->delta_t_std_s < 0.25 * quarter) {
+      bracketed.delta_t_min_s = std::max(fit.delta_t_min_s, steady->delta_t_mean_s - quarter);
+      bracketed.delta_t_max_s = std::min(fit.delta_t_max_s, steady->delta_t_mean_s + quarter);
+      compare(bracketed, /*progress=*/false);
     }
-    for (int k = 0; k < o.repetitions; ++k) {
-      s.test_rms_std += (test_rms[m][k] - s.test_rms_mean).cwiseAbs2() / reps;
-      s.delta_t_std_s += (dts[m][k] - s.delta_t_mean_s) * (dts[m][k] - s.delta_t_mean_s) / reps;
-    }
-    s.test_rms_std = s.test_rms_std.cwiseSqrt();
-    s.delta_t_std_s = std::sqrt(s.delta_t_std_s);
-    const double score = s.test_rms_mean.cwiseQuotient(scale).squaredNorm();
-    if (score < best_score) {
-      best_score = score;
-      r.best = s.kind;
-    }
-    r.table.push_back(s);
   }
   r.foreground = MakeForeground(actual, background, in.pattern_period_s, profile);
   const FieldFunction f_all = [&](double t) { return r.foreground.Value(t); };
-  r.final_fit = FitHallModel(r.best, in.poses, f_all, fit);
+  r.final_fit = FitHallModel(r.best, in.poses, f_all, bracketed);
   return r;
 }
 

@@ -1,7 +1,9 @@
 #pragma once
 // The Hall-sensor calibration pipeline (MSM paper Sec. V-B) and its Table II protocol.
 //
-// 1. Time base: each recording's MCU time -> generator time from its clock edges.
+// 1. Time base: each recording's MCU time -> generator time from its clock edges. Of the actual
+//    recording only the pattern periods with both drives running are kept (driven_periods.h: a
+//    lab session's actual recording also holds its neutral and fast-only frames' stretches).
 // 2. Foreground: actual and background readings folded to pattern phase, averaged into smooth
 //    periodic profiles P_A, P_B; B(t) = (P_A(t) - mean P_A) - (P_B(t) - mean P_B). Subtracting
 //    each recording's own mean removes a baseline shift between the two recordings (they are
@@ -18,6 +20,7 @@
 #include <vector>
 
 #include "processing/dataset/recording.h"
+#include "processing/hall/driven_periods.h"
 #include "processing/hall/hall_model.h"
 #include "processing/hall/phase_profile.h"
 #include "processing/hall/time_base.h"
@@ -35,6 +38,7 @@ struct HallCalibrationInput {
 
 struct HallCalibrationOptions {
   TimeBaseOptions time_base;
+  DrivenPeriodOptions driven_periods;  // which periods of the actual recording are the scan
   PhaseProfileOptions profile;
   double delta_t_min_s = -0.01;
   double delta_t_max_s = 0.01;
@@ -70,6 +74,7 @@ struct ModelStats {
 struct HallCalibrationResult {
   TimeBase actual_time_base;
   TimeBase background_time_base;
+  DrivenPeriods actual_periods;  // the actual recording's periods used (both drives running)
   // One per options.models that could be fitted, in that order. A model with more parameters
   // than the poses of a training split can determine is left out and named in skipped_models
   // ("cubic: needs more than 20 poses, 11 per training split"); when no model is left,

@@ -94,6 +94,16 @@ void AddDropped(const std::vector<solver::DroppedFrame>& dropped,
   return s;
 }
 
+// Which part of the actual recording the calibration used (processing/hall/driven_periods.h).
+std::string ActualPeriodsLine(const hall::DrivenPeriods& p, size_t readings) {
+  if (p.readings_used == readings) return {};
+  return Printf(
+      "actual recording: %zu of %zu readings used, %d of %d pattern periods with both drives "
+      "running (%d with a drive off, e.g. neutral and fast-only frames, %d next to them left "
+      "out)\n",
+      p.readings_used, readings, p.driven, p.periods, p.not_driven, p.margin);
+}
+
 }  // namespace
 
 SolveStepResult RunSolveStep(const fs::path& dir, const solver::PipelineOptions& options,
@@ -250,6 +260,7 @@ HallCalibrationStepResult RunHallCalibration(const fs::path& dir,
                  "jitter %.2f us\n",
                  tb.edges_used, tb.edges_missing, tb.edges_rejected, tb.RateErrorPpm(),
                  tb.jitter_rms_us) +
+             ActualPeriodsLine(result.actual_periods, setup.actual.readings.size()) +
              Printf("model: %s, delta_t = %.4f ms, wrote %s (%.1f s)\n", hall::ToString(r.model),
                     r.delta_t_s * 1e3, r.model_file.string().c_str(), seconds);
   } catch (const std::exception& e) {

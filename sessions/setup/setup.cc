@@ -114,10 +114,6 @@ std::vector<std::string> Changes(const std::optional<RigState>& before, const Ri
   if (!block.empty()) c.push_back("block " + Beams(block));
   if (!unblock.empty()) c.push_back("unblock " + Beams(unblock));
   if (all && s.beams_unblocked.empty()) c.push_back("block every beam");
-  if (all || before->drive != s.drive)
-    c.push_back(s.drive == Drive::kOff        ? "drives off"
-                : s.drive == Drive::kFastOnly ? "fast drive on, slow drive off"
-                                              : "both drives on (scan)");
   return c;
 }
 
@@ -133,7 +129,6 @@ RigState Step1State(const dataset::Step1Frame& f, const std::vector<PoseGeometry
     s.sliding_plate.tilt_deg = poses[f.pose].tilt_deg;
   }
   s.beams_unblocked = Sorted(f.beams);
-  s.drive = Drive::kOff;
   return s;
 }
 
@@ -143,10 +138,27 @@ RigState Step2State(const dataset::Step2Frame& f) {
   s.msm_mounted = true;
   s.top_frame_mounted = true;
   s.beams_unblocked = Sorted(f.beams);
-  s.drive = f.kind == dataset::Step2Kind::kNeutral    ? Drive::kOff
-            : f.kind == dataset::Step2Kind::kFastOnly ? Drive::kFastOnly
-                                                      : Drive::kScan;
   return s;
+}
+
+// The drives the generators play for a step 2 frame (not physical: no set-up of its own).
+Drive DriveOf(const dataset::Step2Frame& f) {
+  return f.kind == dataset::Step2Kind::kNeutral    ? Drive::kOff
+         : f.kind == dataset::Step2Kind::kFastOnly ? Drive::kFastOnly
+                                                   : Drive::kScan;
+}
+
+// "Neutral frame: drives off ..." for one drive mode.
+std::string DriveLine(Drive d) {
+  switch (d) {
+    case Drive::kOff:
+      return "Neutral frame: drives off (fast and slow axis at rest).";
+    case Drive::kFastOnly:
+      return "Fast-only frame: fast axis driven, slow drive off.";
+    case Drive::kScan:
+      return "Scan frame: both drives on (full scan).";
+  }
+  return {};
 }
 
 std::vector<int> AllBeams(const dataset::Recording& plan) {
@@ -183,12 +195,12 @@ bool SlidingPlateState::operator==(const SlidingPlateState& o) const {
 bool RigState::operator==(const RigState& o) const {
   return camera == o.camera && msm_mounted == o.msm_mounted &&
          top_frame_mounted == o.top_frame_mounted && sliding_plate == o.sliding_plate &&
-         beams_unblocked == o.beams_unblocked && drive == o.drive;
+         beams_unblocked == o.beams_unblocked;
 }
 
 bool Setup::operator==(const Setup& o) const {
   return block == o.block && of == o.of && step == o.step && frames == o.frames &&
-         state == o.state && changes == o.changes && text == o.text;
+         state == o.state && drive == o.drive && changes == o.changes && text == o.text;
 }
 
 std::string RenderSetupText(const Setup& s, const dataset::Recording& plan, bool background_first) {
@@ -255,16 +267,24 @@ std::string RenderSetupText(const Setup& s, const dataset::Recording& plan, bool
       const size_t first = s.frame_indices.empty() ? 0 : s.frame_indices.front();
       const dataset::Step2Frame& f = plan.step2.at(first);
       items.push_back("MSM mounted (top frame on), camera at the step-2 position.");
-      switch (st.drive) {
-        case Drive::kOff:
-          items.push_back("Neutral frame: drives off (fast and slow axis at rest).");
-          break;
-        case Drive::kFastOnly:
-          items.push_back("Fast-only frame: fast axis driven, slow drive off.");
-          break;
-        case Drive::kScan:
-          items.push_back("Scan frame: both drives on (full scan).");
-          break;
+      // The drives are the generators' business (per-frame signals): said, not asked for.
+      int kinds[3] = {0, 0, 0};
+      for (size_t i : s.frame_indices) ++kinds[static_cast<int>(DriveOf(plan.step2.at(i)))];
+      const int mixed = (kinds[0] > 0) + (kinds[1] > 0) + (kinds[2] > 0);
+      if (mixed <= 1) {
+        items.push_back(DriveLine(s.drive));
+      } else {
+        std::vector<std::string> parts;
+        const char* what[3] = {"neutral (drives off)", "fast-only (fast drive only)",
+                               "scan (both drives)"};
+        for (int k = 0; k < 3; ++k)
+          if (kinds[k] > 0) parts.push_back(std::to_string(kinds[k]) + " " + what[k]);
+        std::string line = "Frames: ";
+        for (size_t k = 0; k < parts.size(); ++k)
+          line += (k == 0 ? "" : k + 1 == parts.size() ? " and " : ", ") + parts[k];
+        items.push_back(line +
+                        "; the generators switch the drives for each frame, nothing to change at "
+                        "the rig.");
       }
       if (n == 1 && !f.triggers.empty()) {
         std::ostringstream t;
@@ -301,10 +321,11 @@ SetupPlan PlanSetups(const dataset::Recording& plan, const std::vector<PoseGeome
   out.step1_setup.assign(plan.step1.size(), -1);
   out.step2_setup.assign(plan.step2.size(), -1);
   const std::vector<int> all = AllBeams(plan);
-  auto add = [&](SetupStep step, const RigState& state) {
+  auto add = [&](SetupStep step, const RigState& state, Drive drive) {
     Setup s;
     s.step = step;
     s.state = state;
+    s.drive = drive;
     out.setups.push_back(s);
     return static_cast<int>(out.setups.size()) - 1;
   };
@@ -313,8 +334,8 @@ SetupPlan PlanSetups(const dataset::Recording& plan, const std::vector<PoseGeome
     s.msm_mounted = true;  // the base with the sensor and the coils in place
     s.top_frame_mounted = false;
     s.sliding_plate = {};
-    s.drive = Drive::kScan;  // coils driven as in step 2
-    out.background_setup = add(SetupStep::kHallBackground, s);
+    out.background_setup =
+        add(SetupStep::kHallBackground, s, Drive::kScan);  // coils driven as in step 2
   };
   RigState before1;
   before1.beams_unblocked = all;
@@ -323,7 +344,7 @@ SetupPlan PlanSetups(const dataset::Recording& plan, const std::vector<PoseGeome
     const RigState s = Step1State(plan.step1[i], poses);
     if (out.setups.empty() || out.setups.back().step != SetupStep::kStep1 ||
         out.setups.back().state != s)
-      add(SetupStep::kStep1, s);
+      add(SetupStep::kStep1, s, Drive::kOff);
     out.setups.back().frames.push_back(plan.step1[i].file);
     out.setups.back().frame_indices.push_back(i);
     out.step1_setup[i] = static_cast<int>(out.setups.size()) - 1;
@@ -335,12 +356,11 @@ SetupPlan PlanSetups(const dataset::Recording& plan, const std::vector<PoseGeome
   actual.msm_mounted = true;
   actual.top_frame_mounted = true;
   actual.beams_unblocked = out.setups.back().state.beams_unblocked;
-  actual.drive = Drive::kScan;
-  out.actual_setup = add(SetupStep::kHallActual, actual);
+  out.actual_setup = add(SetupStep::kHallActual, actual, Drive::kScan);
   for (size_t i = 0; i < plan.step2.size(); ++i) {
     const RigState s = Step2State(plan.step2[i]);
     if (out.setups.back().step != SetupStep::kStep2 || out.setups.back().state != s)
-      add(SetupStep::kStep2, s);
+      add(SetupStep::kStep2, s, DriveOf(plan.step2[i]));
     out.setups.back().frames.push_back(plan.step2[i].file);
     out.setups.back().frame_indices.push_back(i);
     out.step2_setup[i] = static_cast<int>(out.setups.size()) - 1;
@@ -377,7 +397,7 @@ std::string SetupToJson(const Setup& s) {
     j["sliding_plate"] = {{"mounted", false}};
   }
   j["beams_unblocked"] = s.state.beams_unblocked;
-  j["drive"] = ToString(s.state.drive);
+  j["drive"] = ToString(s.drive);
   j["changes"] = s.changes;
   j["text"] = s.text;
   return j.dump();
@@ -431,11 +451,11 @@ Setup SetupFromJson(const std::string& text) {
     s.state.beams_unblocked = need(j, "beams_unblocked", "beams_unblocked").get<std::vector<int>>();
     const std::string drive = need(j, "drive", "drive").get<std::string>();
     if (drive == "off")
-      s.state.drive = Drive::kOff;
+      s.drive = Drive::kOff;
     else if (drive == "fast_only")
-      s.state.drive = Drive::kFastOnly;
+      s.drive = Drive::kFastOnly;
     else if (drive == "scan")
-      s.state.drive = Drive::kScan;
+      s.drive = Drive::kScan;
     else
       throw std::runtime_error("setup JSON: drive = '" + drive +
                                "': must be off, fast_only or scan");

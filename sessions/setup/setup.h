@@ -6,10 +6,11 @@
 //
 // Set-ups are designed from a plan (PlanSetups): consecutive frames of one step with equal
 // physical state (camera position, MSM and top frame mounted, sliding plate pose, unblocked
-// beams, drive mode) share one set-up, so repeated exposures and frames that differ only in
-// their trigger selection do not ask again. Each Hall recording is a set-up of its own (its
-// recording starts when it is confirmed). Trigger selection is not physical: the generators
-// play the plan's trigger table.
+// beams) share one set-up, so repeated exposures and frames that differ only in their trigger
+// selection or their drive mode do not ask again. Each Hall recording is a set-up of its own
+// (its recording starts when it is confirmed). Neither the trigger selection nor the drive mode
+// is physical: the generators play each frame's triggers and switch the drives per frame
+// (docs/lab-path.md, "Per-frame signals"); `drive` is information only.
 //
 // JSON (one object, UTF-8, one line when sent to a hook):
 //   {"msmcal_setup": 1, "kind": "setup", "block": 3, "of": 24,
@@ -18,7 +19,8 @@
 //    "camera": "C1" | "C2", "msm_mounted": false, "top_frame_mounted": true,
 //    "sliding_plate": {"mounted": true, "pose": 2, "distance_mm": 35.0, "tilt_deg": 12.0}
 //                     (or {"mounted": false}),
-//    "beams_unblocked": [1, 2, 3], "drive": "off" | "fast_only" | "scan",
+//    "beams_unblocked": [1, 2, 3], "drive": "off" | "fast_only" | "scan" (information: the
+//    generators' drive mode at the set-up's first frame),
 //    "changes": ["..."], "text": "<the rendered instruction block>"}
 //   {"msmcal_setup": 1, "kind": "truth_request", "dir": "/abs/session/truth"}
 // `block` counts from 1; `pose` is the plan's 0-based pose index (session.yaml), the texts say
@@ -55,7 +57,6 @@ struct RigState {
   bool top_frame_mounted = true;
   SlidingPlateState sliding_plate;
   std::vector<int> beams_unblocked;  // ascending
-  Drive drive = Drive::kOff;
   bool operator==(const RigState& o) const;
   bool operator!=(const RigState& o) const { return !(*this == o); }
 };
@@ -67,6 +68,9 @@ struct Setup {
   std::vector<std::string> frames;    // plan frames taken at this set-up (empty for Hall set-ups)
   std::vector<size_t> frame_indices;  // their indices into plan.step1 / plan.step2 (not in JSON)
   RigState state;
+  // Information, not physical: the drive mode the generators play at the set-up's first frame
+  // (a step 2 set-up may cover neutral, fast-only and scan frames; the Hall set-ups: scan).
+  Drive drive = Drive::kOff;
   std::vector<std::string> changes;  // what differs from the previous set-up (all, for the first)
   std::string text;                  // the console's instruction block
   bool operator==(const Setup& o) const;

@@ -14,7 +14,7 @@ trap 'rm -rf "$dir"' EXIT
 "$msmcal" plan --rig "$src/config/rig.yaml" --out "$dir/plan" > "$dir/plan.out"
 cat "$dir/plan.out"
 grep -q "^frames: 48 step 1, 30 step 2 (73 triggers)$" "$dir/plan.out"
-grep -q "^prompts: 21 set-ups" "$dir/plan.out"
+grep -q "^prompts: 19 set-ups" "$dir/plan.out"
 grep -q "^expected duration: about " "$dir/plan.out"
 grep -q "^disk needed: about " "$dir/plan.out"
 test -f "$dir/plan/session.yaml" && test -f "$dir/plan/camera.yaml"
@@ -25,18 +25,18 @@ fi
 grep -q "holds a plan already (--force replaces it)" "$dir/err"
 "$msmcal" plan --rig "$src/config/rig.yaml" --out "$dir/plan" --force --setups "$dir/setups.jsonl" \
   > /dev/null
-# --setups: one JSON set-up per line, as many as the prompts announced, blocks 1..21 in order.
+# --setups: one JSON set-up per line, as many as the prompts announced, blocks 1..19 in order.
 /usr/bin/python3 - "$dir/setups.jsonl" <<'PY'
 import json, sys
 lines = open(sys.argv[1]).read().splitlines()
-assert len(lines) == 21, len(lines)
+assert len(lines) == 19, len(lines)
 for k, line in enumerate(lines):
     s = json.loads(line)
     assert s["msmcal_setup"] == 1 and s["kind"] == "setup", s
-    assert s["block"] == k + 1 and s["of"] == 21, s
+    assert s["block"] == k + 1 and s["of"] == 19, s
     assert s["for"]["step"] in ("step1", "hall_background", "hall_actual", "step2"), s
     assert s["camera"] in ("C1", "C2") and s["drive"] in ("off", "fast_only", "scan"), s
-    assert s["text"].startswith("\n=== [%d/21] " % (k + 1)), s["text"]
+    assert s["text"].startswith("\n=== [%d/19] " % (k + 1)), s["text"]
 PY
 
 # The shared validator: every problem it reports is a file a plan does not have yet.
@@ -52,7 +52,7 @@ fi
 "$msmcal" session run --rig "$src/config/rig.yaml" --plan "$dir/plan" --out "$dir/new/s1" \
     --dry-run > "$dir/dry.out"
 cat "$dir/dry.out"
-grep -q "^prompts: 21 set-ups" "$dir/dry.out"
+grep -q "^prompts: 19 set-ups" "$dir/dry.out"
 grep -q "^free disk at $dir: " "$dir/dry.out"
 grep -q "^dry run: the plan fits the rig's limits$" "$dir/dry.out"
 test ! -e "$dir/new"

@@ -5,6 +5,7 @@
 
 #include <Eigen/Geometry>
 #include <cmath>
+#include <functional>
 #include <random>
 #include <vector>
 
@@ -21,17 +22,29 @@ struct SyntheticHallRig {
   Eigen::Vector3d earth{20, -5, 40};
   Eigen::Vector3d baseline_shift{3, -2, 1};  // background recording vs actual
 
+  // The drives as a lab session plays them per step 2 frame (docs/lab-path.md, "Per-frame
+  // signals"): both on (the scan), the fast one only, or both off (the neutral pose). An axis
+  // that is not driven rests at 0 and its coil adds no field. Empty: always the scan.
+  enum class Drives { kScan, kFastOnly, kOff };
+  std::function<Drives(double t)> drives;
+  Drives DrivesAt(double t) const { return drives ? drives(t) : Drives::kScan; }
+
   // alpha_deg, beta_deg, trans_mm at generator time t (paper-like ranges: 4.37, 17.17, 1.04).
   Eigen::Vector3d Pose(double t) const {
-    const double a =
-        2.185 * std::sin(2 * M_PI * f_fast * t + 0.3) + 0.05 * std::sin(4 * M_PI * f_fast * t);
-    const double b = 8.585 * std::sin(2 * M_PI * f_slow * t + 1.0);
+    const Drives d = DrivesAt(t);
+    const double a = d == Drives::kOff ? 0.0
+                                       : 2.185 * std::sin(2 * M_PI * f_fast * t + 0.3) +
+                                             0.05 * std::sin(4 * M_PI * f_fast * t);
+    const double b = d == Drives::kScan ? 8.585 * std::sin(2 * M_PI * f_slow * t + 1.0) : 0.0;
     const double tr = 0.03 * b + 0.004 * b * b - 0.15;
     return {a, b, tr};
   }
   Eigen::Vector3d Coil(double t) const {
-    return {5 * std::sin(2 * M_PI * f_fast * t), 3 * std::sin(2 * M_PI * f_slow * t + 0.2),
-            2 * std::sin(4 * M_PI * f_fast * t)};
+    const Drives d = DrivesAt(t);
+    const double fast = d == Drives::kOff ? 0.0 : 1.0, slow = d == Drives::kScan ? 1.0 : 0.0;
+    return {fast * 5 * std::sin(2 * M_PI * f_fast * t),
+            slow * 3 * std::sin(2 * M_PI * f_slow * t + 0.2),
+            fast * 2 * std::sin(4 * M_PI * f_fast * t)};
   }
   // Field of the magnet (dipole) at the sensor for a pose.
   Eigen::Vector3d Magnet(const Eigen::Vector3d& pose) const {

@@ -101,9 +101,27 @@ TEST(SetupTest, SetupsChangeOnlyWithThePhysicalState) {
   for (const auto& f : plan.step1) all.push_back(f.file);
   for (const auto& f : plan.step2) all.push_back(f.file);
   EXPECT_EQ(covered, all);
-  // The example: 3 exposures of every step 1 frame share a set-up; step 2 has one set-up per
-  // kind (neutral, fast-only, scan: triggers are not physical); plus the two Hall set-ups.
-  EXPECT_EQ(sp.setups.size() - 2, plan.step1.size() / 3 + 3);
+  // The example: 3 exposures of every step 1 frame share a set-up; step 2 is one set-up (every
+  // frame with every beam: neither the triggers nor the drive mode are physical, the generators
+  // switch the drives per frame); plus the two Hall set-ups.
+  EXPECT_EQ(sp.setups.size() - 2, plan.step1.size() / 3 + 1);
+  const setup::Setup& s2all = sp.setups.back();
+  EXPECT_EQ(s2all.step, SetupStep::kStep2);
+  EXPECT_EQ(s2all.frames.size(), plan.step2.size());
+  EXPECT_EQ(s2all.drive, Drive::kOff);  // information: the first frame is a neutral one
+  for (const auto& c : s2all.changes) EXPECT_EQ(c.find("drive"), std::string::npos) << c;
+  EXPECT_NE(s2all.text.find("Frames: 2 neutral (drives off), 3 fast-only (fast drive only) and "
+                            "25 scan (both drives); the generators switch the drives for each "
+                            "frame, nothing to change at the rig."),
+            std::string::npos)
+      << s2all.text;
+  // A change of beams still asks, whatever the drive mode.
+  dataset::Recording blocked = plan;
+  blocked.step2.back().beams = {1, 2};
+  const SetupPlan sb = PlanSetups(blocked, plan::PoseGeometryOf(rig));
+  ASSERT_EQ(sb.setups.size(), sp.setups.size() + 1);
+  EXPECT_EQ(sb.setups.back().changes, std::vector<std::string>{"block beam 3"});
+  EXPECT_EQ(sb.setups.back().drive, Drive::kScan);
   const setup::Setup& bg = sp.setups.at(sp.background_setup);
   EXPECT_EQ(bg.step, SetupStep::kHallBackground);
   EXPECT_FALSE(bg.state.top_frame_mounted);
