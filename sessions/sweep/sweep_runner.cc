@@ -4,6 +4,7 @@
 #include <mutex>
 #include <stdexcept>
 
+#include "drivers/generator/safe_state.h"
 #include "sessions/interchange/interchange_io.h"
 
 namespace msmcal::sweep {
@@ -155,6 +156,14 @@ SweepOutcome RunSweep(const SweepPlan& plan, const fs::path& dir, const SweepHoo
         hooks.print(FormatProgressLine(snap), true);
       }
       failure = hooks.finish(point, folder);
+    } catch (const gen::SafeStateNotConfirmed& e) {
+      // The outputs may be on: no further point runs. The point is recorded as failed (a
+      // resume redoes it) and the error goes to the command, which exits with its status.
+      rec.duration_s += hooks.now_s() - point_t0;
+      rec.status = PointStatus::kFailed;
+      rec.reason = FirstLine(e.what());
+      WriteSweepState(state_file, state);
+      throw;
     } catch (const std::exception& e) {
       failure = FirstLine(e.what());
       if (failure.empty()) failure = "failed (no message)";

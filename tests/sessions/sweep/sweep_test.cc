@@ -13,6 +13,7 @@
 #include <sstream>
 #include <string>
 
+#include "drivers/generator/safe_state.h"
 #include "sessions/store/session_store.h"
 #include "sessions/sweep/sweep_plan.h"
 #include "sessions/sweep/sweep_progress.h"
@@ -416,6 +417,7 @@ struct FakeRig {
   std::vector<std::string> printed;
   std::vector<std::string> calls;  // "acquire p001 resume=0", "finish p001"
   std::set<std::string> fail_acquire, fail_finish;
+  std::set<std::string> unsafe_acquire;  // the safe state not confirmed (outputs may be on)
 
   SweepHooks Hooks() {
     SweepHooks h;
@@ -438,6 +440,8 @@ struct FakeRig {
         on_event(FrameEvent(1, i, 2, true));
         clock_s += 10;
       }
+      if (unsafe_acquire.count(p.name.substr(0, 4)))
+        throw gen::SafeStateNotConfirmed(75, "generator outputs NOT confirmed off");
       if (fail_acquire.count(p.name.substr(0, 4)))
         throw std::runtime_error("camera: no frame\nsecond line");
       WriteText(folder / "session.yaml", "complete");
@@ -453,6 +457,27 @@ struct FakeRig {
     return h;
   }
 };
+
+// A point whose safe state is not confirmed stops the sweep (outputs may be on): no further
+// point runs, the point is recorded as failed, the error reaches the command with its status.
+TEST(SweepRunner, StopsWhenASafeStateIsNotConfirmed) {
+  const fs::path dir = FreshDir("runner_unsafe") / "out";
+  const SweepPlan plan =
+      ParseSimPlan("axes:\n  triggers.max_triggers: [18, 24, 30]\n", "plan.yaml", ".");
+  FakeRig rig;
+  rig.unsafe_acquire = {"p002"};
+  WriteText(dir / "sweep.yaml", SweepPlanToYaml(plan));
+  try {
+    RunSweep(plan, dir, rig.Hooks());
+    FAIL() << "expected SafeStateNotConfirmed";
+  } catch (const gen::SafeStateNotConfirmed& e) {
+    EXPECT_EQ(e.exit_status(), 75);
+  }
+  EXPECT_EQ(rig.calls, (std::vector<std::string>{"acquire p001 resume=0", "finish p001",
+                                                 "acquire p002 resume=0"}));
+  const std::string state = ReadText(dir / "sweep_state.json");
+  EXPECT_NE(state.find("NOT confirmed off"), std::string::npos) << state;
+}
 
 TEST(SweepRunner, GoesOnAfterAFailureAndResumesWithoutRedoingWork) {
   const fs::path dir = FreshDir("runner") / "out";
