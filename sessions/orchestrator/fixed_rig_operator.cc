@@ -37,7 +37,6 @@ setup::RigState FixedRigState(const dataset::Recording& plan) {
   s.sliding_plate = {};
   for (const auto& b : plan.beams) s.beams_unblocked.push_back(b.id);
   std::sort(s.beams_unblocked.begin(), s.beams_unblocked.end());
-  s.drive = setup::Drive::kScan;
   return s;
 }
 
@@ -47,6 +46,7 @@ setup::Setup FixedRigSetup(const dataset::Recording& plan) {
   s.of = 1;
   s.step = setup::SetupStep::kStep2;
   s.state = FixedRigState(plan);
+  s.drive = setup::Drive::kScan;
   s.changes = {"camera at the step-2 position C2 (sees the world board)",
                "mount the MSM in the beam path, with its top frame", "remove the sliding plate",
                "unblock beams " + Ints(s.state.beams_unblocked)};
