@@ -5,12 +5,11 @@
 #include <numbers>
 #include <stdexcept>
 
+#include "common/units.h"
 #include "processing/geometry/rigid3.h"
 
 namespace msmcal::sim {
 namespace {
-
-constexpr double kDegToRad = std::numbers::pi / 180.0;
 
 Eigen::Vector3d Vec(const std::array<double, 3>& a) { return {a[0], a[1], a[2]}; }
 
@@ -32,7 +31,8 @@ const char* ToString(HallRecordingKind kind) {
 
 HallModel::HallModel(const SimOptions& options)
     : options_(options), motion_(options.mirror), period_s_(options.PatternPeriodS()) {
-  sensor_from_mirror0_ = geometry::So3Exp(Vec(options.hall.sensor_rotation_deg) * kDegToRad);
+  sensor_from_mirror0_ =
+      geometry::So3Exp(Vec(options.hall.sensor_rotation_deg) * common::kRadPerDeg);
   sensor_in_mirror0_mm_ = Vec(options.hall.sensor_position_mm);
 }
 
@@ -56,7 +56,8 @@ Eigen::Vector3d HallModel::MagnetFieldUT(const geometry::MirrorPose& pose) const
 Eigen::Vector3d HallModel::CoilFieldUT(double t_s) const {
   const auto& h = options_.hall;
   auto signal = [&](const AxisOptions& a) {
-    const double phi = 2 * std::numbers::pi * a.frequency_hz * t_s + a.phase_deg * kDegToRad;
+    const double phi =
+        2 * std::numbers::pi * a.frequency_hz * t_s + a.phase_deg * common::kRadPerDeg;
     return std::sin(phi) + h.coil_harmonic2_ratio * std::sin(2 * phi);
   };
   Eigen::Vector3d b = Eigen::Vector3d::Zero();

@@ -11,6 +11,7 @@
 #include <stdexcept>
 
 #include "common/text_io.h"
+#include "common/units.h"
 #include "mocks/rig/rig_simulator.h"
 #include "processing/geometry/mirror_frame.h"
 
@@ -18,7 +19,6 @@ namespace msmcal::sim {
 namespace {
 
 namespace fs = std::filesystem;
-constexpr double kRadToDeg = 180.0 / std::numbers::pi;
 
 std::string D(double x) { return common::ShortestDouble(x); }
 std::string Y(double x) { return common::YamlDouble(x); }
@@ -156,8 +156,8 @@ SimTruth MakeTruth(const RigSimulator& sim, double trajectory_rate_hz) {
     row.j = trig.j;
     row.t_s = trig.t_s;
     row.plane_in_world = plane;
-    row.alpha_deg = pose.alpha_rad * kRadToDeg;
-    row.beta_deg = pose.beta_rad * kRadToDeg;
+    row.alpha_deg = pose.alpha_rad * common::kDegPerRad;
+    row.beta_deg = pose.beta_rad * common::kDegPerRad;
     row.trans_mm = pose.trans_mm;
     t.mirror_planes.push_back(row);
     span_sum += sim.SpanningAngleDeg(plane);
@@ -196,7 +196,8 @@ SimTruth MakeTruth(const RigSimulator& sim, double trajectory_rate_hz) {
   for (int i = 0; i < steps; ++i) {
     const double ts = i / trajectory_rate_hz;
     const geometry::MirrorPose p = sim.motion().PoseAt(ts, DriveMode::kScan);
-    t.pose_trajectory.push_back({ts, p.alpha_rad * kRadToDeg, p.beta_rad * kRadToDeg, p.trans_mm});
+    t.pose_trajectory.push_back(
+        {ts, p.alpha_rad * common::kDegPerRad, p.beta_rad * common::kDegPerRad, p.trans_mm});
   }
   return t;
 }

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <map>
 
+#include "common/units.h"
 #include "processing/solver/numeric_diff.h"
 #include "processing/solver/stages/common.h"
 
@@ -40,7 +41,7 @@ double MeanSpanningAngleDeg(const std::vector<ReflectedDot>& reflected_dots,
     const Line& la = est.beams[est_beams[0]];
     const Line& lb = est.beams[est_beams[1]];
     const Eigen::Vector3d na = la.v.cross(a->second) + la.m, nb = lb.v.cross(b->second) + lb.m;
-    double ang = geometry::AngleBetween(na, nb) * kRadToDeg;
+    double ang = geometry::AngleBetween(na, nb) * common::kDegPerRad;
     if (ang > 90) ang = 180 - ang;
     sum += ang;
     ++cnt;
@@ -64,7 +65,7 @@ ValidationResult ValidateHeldOutBeams(const Observations& obs,
     const auto xo = BackProjectToBoard(obs.camera, est.c2_from_world, obs_px);
     const auto xp = BackProjectToBoard(obs.camera, est.c2_from_world, pred_px);
     if (!h || !xo || !xp) return 0.0;
-    return geometry::AngleBetween(*xo - *h, *xp - *h) * kRadToDeg;
+    return geometry::AngleBetween(*xo - *h, *xp - *h) * common::kDegPerRad;
   };
   for (const auto& vd : validation_dots) {
     if (plane_keys[vd.plane].first != Step2Kind::kScan) continue;
