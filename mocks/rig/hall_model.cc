@@ -5,6 +5,7 @@
 #include <numbers>
 #include <stdexcept>
 
+#include "common/check.h"
 #include "common/units.h"
 #include "processing/geometry/rigid3.h"
 
@@ -149,9 +150,8 @@ std::optional<HallEvent> HallSampler::Next() {
 
 dataset::HallRecording HallSampler::Collect() {
   dataset::HallRecording rec;
-  if (end_us_ == std::numeric_limits<int64_t>::max()) {
-    throw std::logic_error("HallSampler::Collect on an endless sampler");
-  }
+  MSMCAL_CHECK(end_us_ != std::numeric_limits<int64_t>::max())
+      << "HallSampler::Collect on an endless sampler";
   rec.readings.reserve(static_cast<size_t>(reading_count_));
   while (auto e = Next()) {
     if (e->type == HallEvent::Type::kClockEdge) {
