@@ -12,6 +12,7 @@
 #include <stdexcept>
 
 #include "common/text_io.h"
+#include "common/yaml_fields.h"
 
 namespace msmcal::sim {
 namespace {
@@ -136,9 +137,7 @@ void VisitAll(V& v, SimOptions& o) {
 }
 
 std::string Where(const std::string& source, const YAML::Node& node, const std::string& key) {
-  std::ostringstream s;
-  s << source << ":" << (node.Mark().line + 1) << ": " << key;
-  return s.str();
+  return common::YamlWhere(source, node) + ": " + key;
 }
 
 class Parser {
@@ -380,12 +379,7 @@ std::string SimOptions::Validate() const {
 }
 
 SimOptions ParseSimOptions(const std::string& yaml_text, const std::string& source_name) {
-  YAML::Node root;
-  try {
-    root = YAML::Load(yaml_text);
-  } catch (const YAML::Exception& e) {
-    throw std::runtime_error(source_name + ":" + std::to_string(e.mark.line + 1) + ": " + e.msg);
-  }
+  const YAML::Node root = common::YamlFields(source_name).Load(yaml_text);
   SimOptions options;
   if (root.IsNull()) return options;
   if (!root.IsMap())

@@ -12,6 +12,7 @@
 
 #include "common/text_io.h"
 #include "common/units.h"
+#include "common/yaml_fields.h"
 #include "mocks/rig/rig_simulator.h"
 #include "processing/geometry/mirror_frame.h"
 
@@ -46,27 +47,19 @@ std::string ReadAll(const fs::path& file) {
 }
 
 YAML::Node LoadYaml(const fs::path& file) {
-  try {
-    return YAML::LoadFile(file.string());
-  } catch (const YAML::Exception& e) {
-    throw std::runtime_error(file.string() + ":" + std::to_string(e.mark.line + 1) + ": " + e.msg);
-  }
+  return common::YamlFields(file.string()).Load(ReadAll(file));
 }
 
+// node[key], which must exist ("<file>:<line>: <key>: missing").
 YAML::Node Need(const YAML::Node& node, const std::string& key, const fs::path& file) {
-  const YAML::Node child = node[key];
-  if (!child) {
-    throw std::runtime_error(file.string() + ":" + std::to_string(node.Mark().line + 1) +
-                             ": missing key '" + key + "'");
-  }
-  return child;
+  return common::YamlFields(file.string()).Required(node, key, key);
 }
 
 Eigen::VectorXd NumList(const YAML::Node& n, int size, const fs::path& file,
                         const std::string& key) {
   if (!n.IsSequence() || static_cast<int>(n.size()) != size) {
-    throw std::runtime_error(file.string() + ":" + std::to_string(n.Mark().line + 1) + ": " + key +
-                             ": expected a list of " + std::to_string(size) + " numbers");
+    common::YamlFields(file.string())
+        .Fail(n, key, "expected a list of " + std::to_string(size) + " numbers");
   }
   Eigen::VectorXd v(size);
   for (int i = 0; i < size; ++i) v[i] = n[i].as<double>();

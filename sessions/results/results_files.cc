@@ -9,6 +9,7 @@
 #include <stdexcept>
 
 #include "common/text_io.h"
+#include "common/yaml_fields.h"
 #include "processing/solver/mle.h"
 #include "sessions/interchange/csv_reader.h"
 #include "sessions/interchange/interchange_io.h"
@@ -525,13 +526,13 @@ double Num(const YAML::Node& n, const std::string& file, const std::string& fiel
   try {
     return n.as<double>();
   } catch (const YAML::Exception&) {
-    Fail(file, field, "expected a number (line " + std::to_string(n.Mark().line + 1) + ")");
+    Fail(file, field, "expected a number (line " + std::to_string(common::YamlLine(n)) + ")");
   }
 }
 
 std::string Str(const YAML::Node& n, const std::string& file, const std::string& field) {
   if (!n.IsScalar()) {
-    Fail(file, field, "expected a text (line " + std::to_string(n.Mark().line + 1) + ")");
+    Fail(file, field, "expected a text (line " + std::to_string(common::YamlLine(n)) + ")");
   }
   return n.Scalar();
 }

@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "common/text_io.h"
+#include "common/yaml_fields.h"
 
 namespace msmcal::results {
 namespace {
@@ -96,13 +97,10 @@ std::vector<Knob> Knobs(solver::PipelineOptions& o) {
   };
 }
 
+// "<path>:<line>: <key>: <what>" (common/yaml_fields.h).
 [[noreturn]] void Fail(const std::string& path, const YAML::Node& n, const std::string& key,
                        const std::string& what) {
-  std::ostringstream s;
-  s << path;
-  if (n.Mark().line >= 0) s << ':' << n.Mark().line + 1;
-  s << ": " << key << ": " << what;
-  throw std::runtime_error(s.str());
+  common::YamlFields(path).Fail(n, key, what);
 }
 
 void Assign(const std::string& path, const YAML::Node& n, const Knob& k) {
