@@ -10,6 +10,7 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "common/number_format.h"
 #include "common/text_io.h"
 #include "common/units.h"
 #include "processing/geometry/rigid3.h"
@@ -17,11 +18,7 @@
 namespace msmcal::sim {
 namespace {
 
-std::string Fmt(double v) {
-  std::ostringstream os;
-  os << v;
-  return os.str();
-}
+std::string Fmt(double v) { return common::FormatSignificant(v, 6); }
 
 std::string Exact(double v) { return common::ShortestDouble(v); }
 

@@ -6,18 +6,14 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "common/number_format.h"
 #include "common/units.h"
 #include "processing/marg/attitude.h"
 
 namespace msmcal::marg {
 namespace {
 
-std::string Fmt(double v) {
-  std::ostringstream os;
-  os.precision(4);
-  os << v;
-  return os.str();
-}
+std::string Fmt(double v) { return common::FormatSignificant(v, 4); }
 
 using Getter = Eigen::Vector3d (*)(const dataset::MargSample&);
 
