@@ -30,25 +30,24 @@ std::string FieldNumber(double v) {
   return ShortestDouble(v);
 }
 
-bool IsYamlNumber(const YAML::Node& n) {
+namespace {
+
+// Whether the scalar `n` converts to T.
+template <typename T>
+bool ReadsAs(const YAML::Node& n) {
   if (!n.IsScalar()) return false;
   try {
-    (void)n.as<double>();
+    (void)n.as<T>();
     return true;
   } catch (const YAML::Exception&) {
     return false;
   }
 }
 
-bool IsYamlBool(const YAML::Node& n) {
-  if (!n.IsScalar()) return false;
-  try {
-    (void)n.as<bool>();
-    return true;
-  } catch (const YAML::Exception&) {
-    return false;
-  }
-}
+}  // namespace
+
+bool IsYamlNumber(const YAML::Node& n) { return ReadsAs<double>(n); }
+bool IsYamlBool(const YAML::Node& n) { return ReadsAs<bool>(n); }
 
 YamlFields::YamlFields(std::string origin, Raise raise)
     : origin_(std::move(origin)), raise_(std::move(raise)) {}

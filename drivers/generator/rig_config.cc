@@ -8,6 +8,7 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "common/file_text.h"
 #include "common/yaml_fields.h"
 #include "drivers/generator/rig_generators.h"
 
@@ -145,11 +146,8 @@ RigGeneratorConfig ParseRigGeneratorConfig(const std::string& yaml_text,
 }
 
 RigGeneratorConfig LoadRigGeneratorConfig(const std::string& path) {
-  std::ifstream in(path);
-  if (!in) throw std::runtime_error(path + ": cannot open the rig configuration");
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ParseRigGeneratorConfig(ss.str(), path);
+  return ParseRigGeneratorConfig(common::ReadFileText(path, "cannot open the rig configuration"),
+                                 path);
 }
 
 std::string RigGeneratorConfig::Validate() const {

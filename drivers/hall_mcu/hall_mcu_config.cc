@@ -2,11 +2,10 @@
 
 #include <yaml-cpp/yaml.h>
 
-#include <fstream>
 #include <set>
-#include <sstream>
 #include <stdexcept>
 
+#include "common/file_text.h"
 #include "common/yaml_fields.h"
 
 namespace msmcal::hall_mcu {
@@ -68,11 +67,7 @@ HallMcuConfig ParseHallMcuConfig(const std::string& yaml_text, const std::string
 }
 
 HallMcuConfig LoadHallMcuConfig(const std::filesystem::path& file) {
-  std::ifstream in(file);
-  if (!in) throw std::runtime_error(file.string() + ": cannot open");
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ParseHallMcuConfig(ss.str(), file.string());
+  return ParseHallMcuConfig(common::ReadFileText(file), file.string());
 }
 
 }  // namespace msmcal::hall_mcu

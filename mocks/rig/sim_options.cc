@@ -11,6 +11,7 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "common/file_text.h"
 #include "common/text_io.h"
 #include "common/yaml_fields.h"
 
@@ -394,11 +395,8 @@ SimOptions ParseSimOptions(const std::string& yaml_text, const std::string& sour
 }
 
 SimOptions LoadSimOptions(const std::filesystem::path& file) {
-  std::ifstream in(file);
-  if (!in) throw std::runtime_error(file.string() + ": cannot open simulation config");
-  std::stringstream text;
-  text << in.rdbuf();
-  return ParseSimOptions(text.str(), file.string());
+  return ParseSimOptions(common::ReadFileText(file, "cannot open simulation config"),
+                         file.string());
 }
 
 std::string SimOptionsToYaml(const SimOptions& options) {

@@ -10,6 +10,8 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "common/csv_writer.h"
+#include "common/file_text.h"
 #include "common/text_io.h"
 #include "common/units.h"
 #include "common/yaml_fields.h"
@@ -21,7 +23,6 @@ namespace {
 
 namespace fs = std::filesystem;
 
-std::string D(double x) { return common::ShortestDouble(x); }
 std::string Y(double x) { return common::YamlDouble(x); }
 
 std::string List(const Eigen::VectorXd& v) {
@@ -38,16 +39,8 @@ std::string TransformYaml(const geometry::Rigid3d& t) {
   return "{R: " + List(row_major) + ", t: " + List(t.translation) + "}";
 }
 
-std::string ReadAll(const fs::path& file) {
-  std::ifstream in(file);
-  if (!in) throw std::runtime_error(file.string() + ": cannot open");
-  std::stringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
-
 YAML::Node LoadYaml(const fs::path& file) {
-  return common::YamlFields(file.string()).Load(ReadAll(file));
+  return common::YamlFields(file.string()).Load(common::ReadFileText(file));
 }
 
 // node[key], which must exist ("<file>:<line>: <key>: missing").
@@ -201,8 +194,7 @@ void WriteTruth(const fs::path& dir, const SimTruth& t) {
   {
     std::string s = std::string(kBeamsHeader) + "\n";
     for (const auto& b : t.beams) {
-      s += std::to_string(b.beam) + "," + D(b.p.x()) + "," + D(b.p.y()) + "," + D(b.p.z()) + "," +
-           D(b.v.x()) + "," + D(b.v.y()) + "," + D(b.v.z()) + "\n";
+      common::AppendCsvRow(&s, b.beam, b.p.x(), b.p.y(), b.p.z(), b.v.x(), b.v.y(), b.v.z());
     }
     common::WriteFileAtomically(truth / "beams.csv", s);
   }
@@ -210,10 +202,9 @@ void WriteTruth(const fs::path& dir, const SimTruth& t) {
     std::string s = std::string(kPlanesHeader) + "\n";
     for (const auto& p : t.mirror_planes) {
       const auto& n = p.plane_in_world.n;
-      s += std::to_string(p.j) + "," + D(p.t_s) + "," + D(n.x()) + "," + D(n.y()) + "," + D(n.z()) +
-           "," + D(p.plane_in_world.d) + "," + D(p.alpha_deg) + "," + D(p.beta_deg) + "," +
-           D(p.trans_mm) + "," + D(p.sigma_alpha_deg) + "," + D(p.sigma_beta_deg) + "," +
-           D(p.sigma_trans_mm) + "\n";
+      common::AppendCsvRow(&s, p.j, p.t_s, n.x(), n.y(), n.z(), p.plane_in_world.d, p.alpha_deg,
+                           p.beta_deg, p.trans_mm, p.sigma_alpha_deg, p.sigma_beta_deg,
+                           p.sigma_trans_mm);
     }
     common::WriteFileAtomically(truth / "mirror_planes.csv", s);
   }
@@ -242,8 +233,7 @@ void WriteTruth(const fs::path& dir, const SimTruth& t) {
   {
     std::string s = std::string(kDotsHeader) + "\n";
     for (const auto& d : t.dots) {
-      s += d.file + "," + std::to_string(d.beam) + "," + std::to_string(d.j) + "," + D(d.u_px) +
-           "," + D(d.v_px) + "\n";
+      common::AppendCsvRow(&s, d.file, d.beam, d.j, d.u_px, d.v_px);
     }
     common::WriteFileAtomically(truth / "dots.csv", s);
   }
@@ -267,7 +257,7 @@ void WriteTruth(const fs::path& dir, const SimTruth& t) {
   {
     std::string s = std::string(kTrajectoryHeader) + "\n";
     for (const auto& p : t.pose_trajectory) {
-      s += D(p.t_s) + "," + D(p.alpha_deg) + "," + D(p.beta_deg) + "," + D(p.trans_mm) + "\n";
+      common::AppendCsvRow(&s, p.t_s, p.alpha_deg, p.beta_deg, p.trans_mm);
     }
     common::WriteFileAtomically(truth / "pose_trajectory.csv", s);
   }
@@ -276,7 +266,7 @@ void WriteTruth(const fs::path& dir, const SimTruth& t) {
 SimTruth ReadTruth(const fs::path& dir) {
   const fs::path truth = dir / "truth";
   SimTruth t;
-  t.sim_config_yaml = ReadAll(truth / "sim_config.yaml");
+  t.sim_config_yaml = common::ReadFileText(truth / "sim_config.yaml");
   {
     const YAML::Node cfg = LoadYaml(truth / "sim_config.yaml");
     t.seed = Need(cfg, "seed", truth / "sim_config.yaml").as<uint64_t>();

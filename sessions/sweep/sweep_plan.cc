@@ -224,7 +224,7 @@ SweepPlan ParseSweepPlan(const std::string& yaml_text, const std::string& source
     for (const auto& kv : ax) {
       SweepAxis axis;
       axis.path = kv.first.as<std::string>();
-      axis.line = kv.first.Mark().line + 1;
+      axis.line = common::YamlLine(kv.first);
       const YAML::Node s = Lookup(schema, SplitPath(axis.path));
       if (!s.IsDefined() || s.IsMap())
         Fail(source_name, kv.first,
