@@ -98,24 +98,25 @@ std::vector<std::vector<std::string>> ReadCsv(const fs::path& file, const std::s
   return rows;
 }
 
-double ToD(const std::string& s, const fs::path& file, size_t row, const char* column) {
-  double v = 0;
+// The whole cell `s` as a T; otherwise "<file>:<line>: <column>: '<s>' is not <what>".
+template <typename T>
+T Cell(const std::string& s, const fs::path& file, size_t row, const char* column,
+       const char* what) {
+  T v = 0;
   const auto r = std::from_chars(s.data(), s.data() + s.size(), v);
   if (r.ec != std::errc() || r.ptr != s.data() + s.size()) {
     throw std::runtime_error(file.string() + ":" + std::to_string(row + 2) + ": " + column + ": '" +
-                             s + "' is not a number");
+                             s + "' is not " + what);
   }
   return v;
 }
 
+double ToD(const std::string& s, const fs::path& file, size_t row, const char* column) {
+  return Cell<double>(s, file, row, column, "a number");
+}
+
 int ToI(const std::string& s, const fs::path& file, size_t row, const char* column) {
-  int v = 0;
-  const auto r = std::from_chars(s.data(), s.data() + s.size(), v);
-  if (r.ec != std::errc() || r.ptr != s.data() + s.size()) {
-    throw std::runtime_error(file.string() + ":" + std::to_string(row + 2) + ": " + column + ": '" +
-                             s + "' is not an integer");
-  }
-  return v;
+  return Cell<int>(s, file, row, column, "an integer");
 }
 
 constexpr const char* kBeamsHeader = "beam,px,py,pz,vx,vy,vz";
