@@ -16,6 +16,7 @@
 #include <stdexcept>
 
 #include "app/command_registry.h"
+#include "common/units.h"
 #include "mocks/marg/marg_simulator.h"
 #include "processing/marg/attitude.h"
 #include "processing/marg/coverage.h"
@@ -28,8 +29,6 @@ namespace {
 
 namespace fs = std::filesystem;
 using interchange::FormatDouble;
-
-constexpr double kRadToDeg = 180.0 / std::numbers::pi;
 using results::MargCalibrationFile;
 using results::MargValidationFigures;
 
@@ -67,7 +66,7 @@ std::optional<double> FieldElevationDeg(const marg::MargCalibration& cal,
     a.push_back(marg::Accel(s));
     m.push_back(marg::Mag(s));
   }
-  return marg::EstimateFieldElevation(a, m) * kRadToDeg;
+  return marg::EstimateFieldElevation(a, m) * common::kDegPerRad;
 }
 
 std::string MissingHint(const std::vector<Eigen::Vector3d>& missing) {
@@ -166,7 +165,7 @@ void RunAttitude(const std::string& cal_file, const std::string& in, const std::
   }
   if (input_kind == "raw") rec = marg::ApplyCalibration(cal.calibration, rec);
   std::optional<double> elevation;
-  if (cal.field_elevation_deg) elevation = *cal.field_elevation_deg / kRadToDeg;
+  if (cal.field_elevation_deg) elevation = *cal.field_elevation_deg / common::kDegPerRad;
   const auto rows = marg::SolveAttitudeSeries(rec, elevation);
   std::string text = "t_s,roll_deg,pitch_deg,yaw_deg,cost\n";
   for (const auto& r : rows) {
@@ -245,7 +244,8 @@ void RunTable1(const Table1Args& args) {
     mag_raw.push_back(marg::Mag(sim.validation.samples[i]));
   }
   const auto b_true = sim.truth.FieldInBoard(sim.truth.validation);
-  const double mag_floor = std::sqrt(2.0) * cfg.magnetometer.noise_std / cfg.field_uT * kRadToDeg;
+  const double mag_floor =
+      std::sqrt(2.0) * cfg.magnetometer.noise_std / cfg.field_uT * common::kDegPerRad;
   const auto mag_err = marg::CompareDirections(mag, b_true, true);
   std::printf("direction RMS error on validation (yaw removed), noise floor sqrt(2) sigma/|v|:\n");
   std::printf(
@@ -255,7 +255,7 @@ void RunTable1(const Table1Args& args) {
   if (!args.magnetometer_only) {
     const auto g_true = sim.truth.GravityInBoard(sim.truth.validation);
     const double acc_floor =
-        std::sqrt(2.0) * cfg.accelerometer.noise_std / cfg.gravity_g * kRadToDeg;
+        std::sqrt(2.0) * cfg.accelerometer.noise_std / cfg.gravity_g * common::kDegPerRad;
     std::vector<Eigen::Vector3d> acc_raw;
     for (const auto& s : sim.validation.samples) acc_raw.push_back(marg::Accel(s));
     const auto acc_err = marg::CompareDirections(acc, g_true, true);

@@ -5,6 +5,8 @@
 #include <stdexcept>
 #include <utility>
 
+#include "common/check.h"
+
 namespace msmcal::app {
 
 void AddWebUiOptions(CLI::App* command, WebUiArgs* args) {
@@ -48,7 +50,7 @@ WebUi::~WebUi() {
 }
 
 void WebUi::Start(const dataset::Recording& plan, const std::filesystem::path& session_dir) {
-  if (shared_->View()) throw std::logic_error("WebUi::Start called twice");
+  MSMCAL_CHECK(!shared_->View()) << "WebUi::Start called twice";
   live_view::LiveViewOptions vo;
   vo.disk_path = session_dir;
   std::lock_guard<std::mutex> lock(shared_->mu);
@@ -69,7 +71,7 @@ std::string WebUi::url() const {
 std::unique_ptr<orchestrator::RigOperator> WebUi::MakeOperator(
     live_view::WebOperatorOptions options, orchestrator::RigOperator* inner) {
   live_view::LiveView* view = shared_->View();
-  if (!view) throw std::logic_error("WebUi::MakeOperator before Start");
+  MSMCAL_CHECK(view) << "WebUi::MakeOperator before Start";
   if (!options.echo)
     options.echo = [](const std::string& text) {
       std::fputs(text.c_str(), stdout);

@@ -5,6 +5,8 @@ find_package(Ceres REQUIRED)
 find_package(OpenCV REQUIRED COMPONENTS core imgproc imgcodecs calib3d)
 find_package(Boost 1.74 REQUIRED)
 find_package(spdlog REQUIRED)
+# fmt: spdlog's formatter (Debian libfmt-dev), used directly by common/number_format.
+find_package(fmt REQUIRED)
 find_package(yaml-cpp REQUIRED)
 find_package(nlohmann_json 3 REQUIRED)
 find_package(CLI11 REQUIRED)

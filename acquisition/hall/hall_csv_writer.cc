@@ -7,7 +7,7 @@
 #include <cstring>
 #include <stdexcept>
 
-#include "common/text_io.h"
+#include "processing/dataset/hall_csv.h"
 
 namespace msmcal::acquisition {
 namespace {
@@ -19,10 +19,9 @@ std::FILE* OpenOrThrow(const std::filesystem::path& path, const char* header) {
                              " for writing: " + std::strerror(errno));
   }
   std::fputs(header, f);
+  std::fputc('\n', f);
   return f;
 }
-
-void AppendDouble(std::string* line, double v) { common::AppendShortestDouble(line, v); }
 
 void WriteOrThrow(std::FILE* f, const std::string& text, const std::filesystem::path& path) {
   if (std::fwrite(text.data(), 1, text.size(), f) != text.size() || std::fflush(f) != 0) {
@@ -61,9 +60,9 @@ HallCsvWriter::Files& HallCsvWriter::FilesFor(uint32_t epoch) {
                                      std::to_string(epoch) + readings_csv_.extension().string());
   }
   f.clock_path = ClockCsvPathFor(f.readings_path);
-  f.readings = OpenOrThrow(f.readings_path, "mcu_time_us,bx_uT,by_uT,bz_uT\n");
+  f.readings = OpenOrThrow(f.readings_path, dataset::kHallReadingsHeader);
   try {
-    f.clock = OpenOrThrow(f.clock_path, "mcu_time_us\n");
+    f.clock = OpenOrThrow(f.clock_path, dataset::kHallClockHeader);
   } catch (...) {
     std::fclose(f.readings);
     throw;
@@ -76,18 +75,10 @@ HallCsvWriter::Files& HallCsvWriter::FilesFor(uint32_t epoch) {
 void HallCsvWriter::Write(const hall_mcu::HallBatch& batch) {
   std::map<uint32_t, std::string> readings, clocks;
   for (const hall_mcu::HallSample& r : batch.readings) {
-    std::string& line = readings[r.epoch];
-    line += std::to_string(r.mcu_time_us);
-    line += ',';
-    AppendDouble(&line, r.bx_uT);
-    line += ',';
-    AppendDouble(&line, r.by_uT);
-    line += ',';
-    AppendDouble(&line, r.bz_uT);
-    line += '\n';
+    dataset::AppendHallReadingRow(&readings[r.epoch], r.mcu_time_us, r.bx_uT, r.by_uT, r.bz_uT);
   }
   for (const hall_mcu::ClockEdge& e : batch.edges) {
-    clocks[e.epoch] += std::to_string(e.mcu_time_us) + "\n";
+    dataset::AppendClockEdgeRow(&clocks[e.epoch], e.mcu_time_us);
   }
   for (const auto& [epoch, text] : readings) {
     Files& f = FilesFor(epoch);

@@ -8,87 +8,54 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "common/file_text.h"
+#include "common/yaml_fields.h"
 #include "drivers/generator/rig_generators.h"
 
 namespace msmcal::gen {
 namespace {
 
+// The rig file's generator section over the shared field reader (common/yaml_fields.h); adds
+// `inf` as the spelling of high impedance for the load_ohm fields.
 class Reader {
  public:
-  explicit Reader(std::string origin) : origin_(std::move(origin)) {}
+  explicit Reader(std::string origin) : fields_(std::move(origin)) {}
 
   [[noreturn]] void Fail(const YAML::Node& node, const std::string& field,
                          const std::string& what) const {
-    std::ostringstream os;
-    os << origin_;
-    if (node.IsDefined() && node.Mark().line >= 0) os << ":" << node.Mark().line + 1;
-    os << ": " << field << ": " << what;
-    throw std::runtime_error(os.str());
+    fields_.Fail(node, field, what);
   }
 
   YAML::Node Map(const YAML::Node& parent, const std::string& key, const std::string& field,
-                 std::set<std::string> allowed) const {
-    const YAML::Node n = parent[key];
-    if (!n) Fail(parent, field, "missing");
-    if (!n.IsMap()) Fail(n, field, "must be a mapping");
-    for (const auto& kv : n) {
-      const std::string k = kv.first.as<std::string>();
-      if (!allowed.count(k)) Fail(kv.first, field + "." + k, "unknown key");
-    }
-    return n;
+                 const std::set<std::string>& allowed) const {
+    return fields_.Map(parent, key, field, allowed);
   }
 
   // A finite number; `inf` (high impedance) only where `allow_inf` (load_ohm fields).
   double Number(const YAML::Node& parent, const std::string& key, const std::string& field,
                 std::optional<double> def = std::nullopt, bool allow_inf = false) const {
     const YAML::Node n = parent[key];
-    if (!n) {
-      if (def) return *def;
-      Fail(parent, field, "missing");
-    }
-    const std::string text = n.IsScalar() ? n.Scalar() : "";
+    const std::string text = n && n.IsScalar() ? n.Scalar() : "";
     if (allow_inf && (text == "inf" || text == "INF" || text == ".inf")) return kHighZ;
-    double v = 0;
-    try {
-      v = n.as<double>();
-    } catch (const YAML::Exception&) {
-      Fail(n, field, "must be a number, got '" + text + "'");
-    }
-    if (!std::isfinite(v)) {
-      Fail(n, field,
-           "must be a finite number, got '" + text + "'" +
-               (allow_inf ? "" : " (inf is accepted only for load_ohm: high impedance)"));
-    }
-    return v;
+    common::NumberRule rule;
+    if (!allow_inf) rule.Note("(inf is accepted only for load_ohm: high impedance)");
+    return fields_.Number(parent, key, field, def, rule);
   }
 
   int Int(const YAML::Node& parent, const std::string& key, const std::string& field,
           std::optional<int> def = std::nullopt) const {
-    const YAML::Node n = parent[key];
-    if (!n) {
-      if (def) return *def;
-      Fail(parent, field, "missing");
-    }
-    try {
-      return n.as<int>();
-    } catch (const YAML::Exception&) {
-      Fail(n, field, "must be an integer, got '" + (n.IsScalar() ? n.Scalar() : "") + "'");
-    }
+    return fields_.Int(parent, key, field, def);
   }
 
   std::string String(const YAML::Node& parent, const std::string& key, const std::string& field,
                      std::optional<std::string> def = std::nullopt) const {
-    const YAML::Node n = parent[key];
-    if (!n) {
-      if (def) return *def;
-      Fail(parent, field, "missing");
-    }
-    if (!n.IsScalar()) Fail(n, field, "must be a string");
-    return n.Scalar();
+    return fields_.String(parent, key, field, def);
   }
 
+  YAML::Node Load(const std::string& text) const { return fields_.Load(text); }
+
  private:
-  std::string origin_;
+  common::YamlFields fields_;
 };
 
 Keysight33500Options ReadUnit(const Reader& r, const YAML::Node& gens, const std::string& key) {
@@ -144,13 +111,8 @@ LogicLevels ReadLevels(const Reader& r, const YAML::Node& sig, const std::string
 
 RigGeneratorConfig ParseRigGeneratorConfig(const std::string& yaml_text,
                                            const std::string& origin) {
-  YAML::Node root;
-  try {
-    root = YAML::Load(yaml_text);
-  } catch (const YAML::Exception& e) {
-    throw std::runtime_error(origin + ":" + std::to_string(e.mark.line + 1) + ": " + e.msg);
-  }
   const Reader r(origin);
+  const YAML::Node root = r.Load(yaml_text);
   if (!root.IsMap()) r.Fail(root, "(root)", "must be a mapping");
   const YAML::Node gens = r.Map(root, "generators", "generators", {"unit1", "unit2", "signals"});
   RigGeneratorConfig c;
@@ -184,11 +146,8 @@ RigGeneratorConfig ParseRigGeneratorConfig(const std::string& yaml_text,
 }
 
 RigGeneratorConfig LoadRigGeneratorConfig(const std::string& path) {
-  std::ifstream in(path);
-  if (!in) throw std::runtime_error(path + ": cannot open the rig configuration");
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ParseRigGeneratorConfig(ss.str(), path);
+  return ParseRigGeneratorConfig(common::ReadFileText(path, "cannot open the rig configuration"),
+                                 path);
 }
 
 std::string RigGeneratorConfig::Validate() const {

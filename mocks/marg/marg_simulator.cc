@@ -10,19 +10,15 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "common/number_format.h"
 #include "common/text_io.h"
+#include "common/units.h"
 #include "processing/geometry/rigid3.h"
 
 namespace msmcal::sim {
 namespace {
 
-constexpr double kDegToRad = std::numbers::pi / 180.0;
-
-std::string Fmt(double v) {
-  std::ostringstream os;
-  os << v;
-  return os.str();
-}
+std::string Fmt(double v) { return common::FormatSignificant(v, 6); }
 
 std::string Exact(double v) { return common::ShortestDouble(v); }
 
@@ -40,9 +36,9 @@ Eigen::Quaterniond UniformRotation(std::mt19937_64& rng) {
 
 // The fixed plane's orientation: rotation by tilt about the horizontal axis at azimuth.
 Eigen::Quaterniond PlaneOrientation(double tilt_deg, double azimuth_deg) {
-  const Eigen::Vector3d axis(std::cos(azimuth_deg * kDegToRad), std::sin(azimuth_deg * kDegToRad),
-                             0);
-  return Eigen::Quaterniond(Eigen::AngleAxisd(tilt_deg * kDegToRad, axis));
+  const Eigen::Vector3d axis(std::cos(azimuth_deg * common::kRadPerDeg),
+                             std::sin(azimuth_deg * common::kRadPerDeg), 0);
+  return Eigen::Quaterniond(Eigen::AngleAxisd(tilt_deg * common::kRadPerDeg, axis));
 }
 
 struct Sampler {
@@ -87,7 +83,7 @@ struct Sampler {
                              (1 + 0.03 * 2 * std::numbers::pi * std::cos(2 * std::numbers::pi * s));
       const Eigen::Quaterniond q =
           plane * Eigen::Quaterniond(Eigen::AngleAxisd(psi, Eigen::Vector3d::UnitZ()));
-      const Eigen::Vector3d rate(0, 0, psi_dot / kDegToRad);
+      const Eigen::Vector3d rate(0, 0, psi_dot / common::kRadPerDeg);
       rec->samples.push_back(Sample(t, q, rate));
       tr->earth_from_board.push_back(q);
       tr->rate_board_dps.push_back(rate);
@@ -99,7 +95,7 @@ struct Sampler {
 }  // namespace
 
 Eigen::Matrix3d SensorDistortion::SensorFromBoard() const {
-  return geometry::So3Exp(misalignment_deg * kDegToRad);
+  return geometry::So3Exp(misalignment_deg * common::kRadPerDeg);
 }
 
 Eigen::Vector3d SensorDistortion::Distort(const Eigen::Vector3d& v_board) const {
@@ -197,7 +193,7 @@ MargSimulation SimulateMarg(const MargSimConfig& config, uint64_t seed) {
   truth.config = config;
   truth.seed = seed;
   truth.gravity_in_earth = Eigen::Vector3d(0, 0, config.gravity_g);
-  const double el = config.field_elevation_deg * kDegToRad;
+  const double el = config.field_elevation_deg * common::kRadPerDeg;
   truth.field_in_earth = config.field_uT * Eigen::Vector3d(std::cos(el), 0, std::sin(el));
   std::mt19937_64 rng(seed);
   Sampler sampler{config, truth, rng};

@@ -4,6 +4,8 @@
 #include <numbers>
 #include <stdexcept>
 
+#include "common/units.h"
+
 namespace msmcal::sim {
 
 SyntheticMode ParseSyntheticMode(const std::string& name) {
@@ -42,7 +44,7 @@ McuEvent SyntheticSource::MakeSample(int64_t t_us) {
     const double yaw = 0.5 * t;  // rad, slow turn about Z
     const double c = std::cos(yaw), s = std::sin(yaw);
     e.accel_g = {0.1 * c, -0.1 * s, 0.995};
-    e.gyro_dps = {0.0, 0.0, 0.5 * 180.0 / std::numbers::pi};
+    e.gyro_dps = {0.0, 0.0, common::RadToDeg(0.5)};
     e.mag_uT = {20.0 * c, -20.0 * s, -43.0};
     for (int i = 0; i < 3; ++i) {
       e.accel_g[i] += 0.001 * options_.noise_uT * noise_(rng_);

@@ -5,12 +5,12 @@
 #include <numbers>
 #include <stdexcept>
 
+#include "common/check.h"
+#include "common/units.h"
 #include "processing/geometry/rigid3.h"
 
 namespace msmcal::sim {
 namespace {
-
-constexpr double kDegToRad = std::numbers::pi / 180.0;
 
 Eigen::Vector3d Vec(const std::array<double, 3>& a) { return {a[0], a[1], a[2]}; }
 
@@ -32,7 +32,8 @@ const char* ToString(HallRecordingKind kind) {
 
 HallModel::HallModel(const SimOptions& options)
     : options_(options), motion_(options.mirror), period_s_(options.PatternPeriodS()) {
-  sensor_from_mirror0_ = geometry::So3Exp(Vec(options.hall.sensor_rotation_deg) * kDegToRad);
+  sensor_from_mirror0_ =
+      geometry::So3Exp(Vec(options.hall.sensor_rotation_deg) * common::kRadPerDeg);
   sensor_in_mirror0_mm_ = Vec(options.hall.sensor_position_mm);
 }
 
@@ -56,7 +57,8 @@ Eigen::Vector3d HallModel::MagnetFieldUT(const geometry::MirrorPose& pose) const
 Eigen::Vector3d HallModel::CoilFieldUT(double t_s) const {
   const auto& h = options_.hall;
   auto signal = [&](const AxisOptions& a) {
-    const double phi = 2 * std::numbers::pi * a.frequency_hz * t_s + a.phase_deg * kDegToRad;
+    const double phi =
+        2 * std::numbers::pi * a.frequency_hz * t_s + a.phase_deg * common::kRadPerDeg;
     return std::sin(phi) + h.coil_harmonic2_ratio * std::sin(2 * phi);
   };
   Eigen::Vector3d b = Eigen::Vector3d::Zero();
@@ -148,9 +150,8 @@ std::optional<HallEvent> HallSampler::Next() {
 
 dataset::HallRecording HallSampler::Collect() {
   dataset::HallRecording rec;
-  if (end_us_ == std::numeric_limits<int64_t>::max()) {
-    throw std::logic_error("HallSampler::Collect on an endless sampler");
-  }
+  MSMCAL_CHECK(end_us_ != std::numeric_limits<int64_t>::max())
+      << "HallSampler::Collect on an endless sampler";
   rec.readings.reserve(static_cast<size_t>(reading_count_));
   while (auto e = Next()) {
     if (e->type == HallEvent::Type::kClockEdge) {

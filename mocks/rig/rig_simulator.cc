@@ -7,13 +7,12 @@
 #include <numeric>
 #include <stdexcept>
 
+#include "common/units.h"
 #include "processing/plan/frame_design.h"
 
 namespace msmcal::sim {
 namespace {
 
-constexpr double kDegToRad = std::numbers::pi / 180.0;
-constexpr double kRadToDeg = 180.0 / std::numbers::pi;
 // Step 1 dots closer than this in one image are taken one beam at a time: their blobs merge
 // (9 px apart did, at an 18 deg spanning angle) or reach into each other's fit windows.
 constexpr double kMinStep1SeparationPx = 20.0;
@@ -102,12 +101,12 @@ void RigSimulator::Build(const std::vector<double>* trigger_times_s) {
 
 void RigSimulator::BuildGeometry() {
   const auto& g = options_.geometry;
-  const double theta = g.incidence_deg * kDegToRad;
+  const double theta = g.incidence_deg * common::kRadPerDeg;
   // Nominal: reflected central beam +Z_W; incident central direction in the X_W-Z_W plane.
   const Eigen::Vector3d r_c = Eigen::Vector3d::UnitZ();
   const Eigen::Vector3d v_c(std::sin(2 * theta), 0.0, -std::cos(2 * theta));
   const Eigen::Vector3d n_nominal = (r_c - v_c).normalized();
-  const Eigen::Matrix3d tilt = geometry::So3Exp(Vec(g.mount_tilt_deg) * kDegToRad);
+  const Eigen::Matrix3d tilt = geometry::So3Exp(Vec(g.mount_tilt_deg) * common::kRadPerDeg);
   const Eigen::Vector3d n0 = tilt * n_nominal;
   const Eigen::Vector3d fast = tilt * Eigen::Vector3d::UnitY().cross(n_nominal).normalized();
   const Eigen::Vector3d x_o(g.board_aim_mm[0], g.board_aim_mm[1], -g.mirror_distance_mm);
@@ -133,7 +132,7 @@ void RigSimulator::BuildGeometry() {
   };
   // Bisection on the fan angle for the requested spanning angle (monotone over (0, 150) deg for
   // these geometries; checked).
-  double lo = 1e-4, hi = 150.0 * kDegToRad;
+  double lo = 1e-4, hi = 150.0 * common::kRadPerDeg;
   build_beams(hi);
   if (SpanningAngleDeg(neutral) < b.spanning_angle_deg) {
     throw std::runtime_error(Fmt("beams.spanning_angle_deg = %g cannot be reached (max %g deg)",
@@ -145,7 +144,7 @@ void RigSimulator::BuildGeometry() {
     (SpanningAngleDeg(neutral) < b.spanning_angle_deg ? lo : hi) = mid;
   }
   build_beams(0.5 * (lo + hi));
-  fan_angle_deg_ = 0.5 * (lo + hi) * kRadToDeg;
+  fan_angle_deg_ = 0.5 * (lo + hi) * common::kDegPerRad;
 
   // Cameras.
   const auto& c = options_.camera;
@@ -179,7 +178,7 @@ geometry::Rigid3d RigSimulator::SlidingPose(int l, std::optional<double> distanc
   r.col(2) = z;
   // The design alternates the tilt's sign per pose; a given tilt is the signed one.
   const double sign = (l % 2 == 0) ? 1.0 : -1.0;
-  const double signed_tilt_rad = (tilt_deg ? *tilt_deg : sign * s1.tilt_deg) * kDegToRad;
+  const double signed_tilt_rad = (tilt_deg ? *tilt_deg : sign * s1.tilt_deg) * common::kRadPerDeg;
   const double tilt_rad = std::abs(signed_tilt_rad);
   const int m = ((l % 3) + 3) % 3;
   r = Eigen::AngleAxisd(signed_tilt_rad, y).toRotationMatrix() *
@@ -202,7 +201,7 @@ double RigSimulator::SpanningAngleDeg(const geometry::Plane& mirror) const {
     const Eigen::Vector3d r = geometry::ReflectDirection(mirror, beams_[k].v);
     return beams_[k].v.cross(r).normalized();
   };
-  return geometry::AngleBetween(normal(lo), normal(hi)) * kRadToDeg;
+  return geometry::AngleBetween(normal(lo), normal(hi)) * common::kDegPerRad;
 }
 
 geometry::Plane RigSimulator::MirrorPlaneInWorld(double t_s, DriveMode mode) const {

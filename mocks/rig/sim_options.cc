@@ -11,7 +11,9 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "common/file_text.h"
 #include "common/text_io.h"
+#include "common/yaml_fields.h"
 
 namespace msmcal::sim {
 namespace {
@@ -136,9 +138,7 @@ void VisitAll(V& v, SimOptions& o) {
 }
 
 std::string Where(const std::string& source, const YAML::Node& node, const std::string& key) {
-  std::ostringstream s;
-  s << source << ":" << (node.Mark().line + 1) << ": " << key;
-  return s.str();
+  return common::YamlWhere(source, node) + ": " + key;
 }
 
 class Parser {
@@ -380,12 +380,7 @@ std::string SimOptions::Validate() const {
 }
 
 SimOptions ParseSimOptions(const std::string& yaml_text, const std::string& source_name) {
-  YAML::Node root;
-  try {
-    root = YAML::Load(yaml_text);
-  } catch (const YAML::Exception& e) {
-    throw std::runtime_error(source_name + ":" + std::to_string(e.mark.line + 1) + ": " + e.msg);
-  }
+  const YAML::Node root = common::YamlFields(source_name).Load(yaml_text);
   SimOptions options;
   if (root.IsNull()) return options;
   if (!root.IsMap())
@@ -400,11 +395,8 @@ SimOptions ParseSimOptions(const std::string& yaml_text, const std::string& sour
 }
 
 SimOptions LoadSimOptions(const std::filesystem::path& file) {
-  std::ifstream in(file);
-  if (!in) throw std::runtime_error(file.string() + ": cannot open simulation config");
-  std::stringstream text;
-  text << in.rdbuf();
-  return ParseSimOptions(text.str(), file.string());
+  return ParseSimOptions(common::ReadFileText(file, "cannot open simulation config"),
+                         file.string());
 }
 
 std::string SimOptionsToYaml(const SimOptions& options) {

@@ -10,7 +10,11 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "common/csv_writer.h"
+#include "common/file_text.h"
 #include "common/text_io.h"
+#include "common/units.h"
+#include "common/yaml_fields.h"
 #include "mocks/rig/rig_simulator.h"
 #include "processing/geometry/mirror_frame.h"
 
@@ -18,9 +22,7 @@ namespace msmcal::sim {
 namespace {
 
 namespace fs = std::filesystem;
-constexpr double kRadToDeg = 180.0 / std::numbers::pi;
 
-std::string D(double x) { return common::ShortestDouble(x); }
 std::string Y(double x) { return common::YamlDouble(x); }
 
 std::string List(const Eigen::VectorXd& v) {
@@ -37,36 +39,20 @@ std::string TransformYaml(const geometry::Rigid3d& t) {
   return "{R: " + List(row_major) + ", t: " + List(t.translation) + "}";
 }
 
-std::string ReadAll(const fs::path& file) {
-  std::ifstream in(file);
-  if (!in) throw std::runtime_error(file.string() + ": cannot open");
-  std::stringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
-
 YAML::Node LoadYaml(const fs::path& file) {
-  try {
-    return YAML::LoadFile(file.string());
-  } catch (const YAML::Exception& e) {
-    throw std::runtime_error(file.string() + ":" + std::to_string(e.mark.line + 1) + ": " + e.msg);
-  }
+  return common::YamlFields(file.string()).Load(common::ReadFileText(file));
 }
 
+// node[key], which must exist ("<file>:<line>: <key>: missing").
 YAML::Node Need(const YAML::Node& node, const std::string& key, const fs::path& file) {
-  const YAML::Node child = node[key];
-  if (!child) {
-    throw std::runtime_error(file.string() + ":" + std::to_string(node.Mark().line + 1) +
-                             ": missing key '" + key + "'");
-  }
-  return child;
+  return common::YamlFields(file.string()).Required(node, key, key);
 }
 
 Eigen::VectorXd NumList(const YAML::Node& n, int size, const fs::path& file,
                         const std::string& key) {
   if (!n.IsSequence() || static_cast<int>(n.size()) != size) {
-    throw std::runtime_error(file.string() + ":" + std::to_string(n.Mark().line + 1) + ": " + key +
-                             ": expected a list of " + std::to_string(size) + " numbers");
+    common::YamlFields(file.string())
+        .Fail(n, key, "expected a list of " + std::to_string(size) + " numbers");
   }
   Eigen::VectorXd v(size);
   for (int i = 0; i < size; ++i) v[i] = n[i].as<double>();
@@ -112,24 +98,25 @@ std::vector<std::vector<std::string>> ReadCsv(const fs::path& file, const std::s
   return rows;
 }
 
-double ToD(const std::string& s, const fs::path& file, size_t row, const char* column) {
-  double v = 0;
+// The whole cell `s` as a T; otherwise "<file>:<line>: <column>: '<s>' is not <what>".
+template <typename T>
+T Cell(const std::string& s, const fs::path& file, size_t row, const char* column,
+       const char* what) {
+  T v = 0;
   const auto r = std::from_chars(s.data(), s.data() + s.size(), v);
   if (r.ec != std::errc() || r.ptr != s.data() + s.size()) {
     throw std::runtime_error(file.string() + ":" + std::to_string(row + 2) + ": " + column + ": '" +
-                             s + "' is not a number");
+                             s + "' is not " + what);
   }
   return v;
 }
 
+double ToD(const std::string& s, const fs::path& file, size_t row, const char* column) {
+  return Cell<double>(s, file, row, column, "a number");
+}
+
 int ToI(const std::string& s, const fs::path& file, size_t row, const char* column) {
-  int v = 0;
-  const auto r = std::from_chars(s.data(), s.data() + s.size(), v);
-  if (r.ec != std::errc() || r.ptr != s.data() + s.size()) {
-    throw std::runtime_error(file.string() + ":" + std::to_string(row + 2) + ": " + column + ": '" +
-                             s + "' is not an integer");
-  }
-  return v;
+  return Cell<int>(s, file, row, column, "an integer");
 }
 
 constexpr const char* kBeamsHeader = "beam,px,py,pz,vx,vy,vz";
@@ -156,8 +143,8 @@ SimTruth MakeTruth(const RigSimulator& sim, double trajectory_rate_hz) {
     row.j = trig.j;
     row.t_s = trig.t_s;
     row.plane_in_world = plane;
-    row.alpha_deg = pose.alpha_rad * kRadToDeg;
-    row.beta_deg = pose.beta_rad * kRadToDeg;
+    row.alpha_deg = pose.alpha_rad * common::kDegPerRad;
+    row.beta_deg = pose.beta_rad * common::kDegPerRad;
     row.trans_mm = pose.trans_mm;
     t.mirror_planes.push_back(row);
     span_sum += sim.SpanningAngleDeg(plane);
@@ -196,7 +183,8 @@ SimTruth MakeTruth(const RigSimulator& sim, double trajectory_rate_hz) {
   for (int i = 0; i < steps; ++i) {
     const double ts = i / trajectory_rate_hz;
     const geometry::MirrorPose p = sim.motion().PoseAt(ts, DriveMode::kScan);
-    t.pose_trajectory.push_back({ts, p.alpha_rad * kRadToDeg, p.beta_rad * kRadToDeg, p.trans_mm});
+    t.pose_trajectory.push_back(
+        {ts, p.alpha_rad * common::kDegPerRad, p.beta_rad * common::kDegPerRad, p.trans_mm});
   }
   return t;
 }
@@ -207,8 +195,7 @@ void WriteTruth(const fs::path& dir, const SimTruth& t) {
   {
     std::string s = std::string(kBeamsHeader) + "\n";
     for (const auto& b : t.beams) {
-      s += std::to_string(b.beam) + "," + D(b.p.x()) + "," + D(b.p.y()) + "," + D(b.p.z()) + "," +
-           D(b.v.x()) + "," + D(b.v.y()) + "," + D(b.v.z()) + "\n";
+      common::AppendCsvRow(&s, b.beam, b.p.x(), b.p.y(), b.p.z(), b.v.x(), b.v.y(), b.v.z());
     }
     common::WriteFileAtomically(truth / "beams.csv", s);
   }
@@ -216,10 +203,9 @@ void WriteTruth(const fs::path& dir, const SimTruth& t) {
     std::string s = std::string(kPlanesHeader) + "\n";
     for (const auto& p : t.mirror_planes) {
       const auto& n = p.plane_in_world.n;
-      s += std::to_string(p.j) + "," + D(p.t_s) + "," + D(n.x()) + "," + D(n.y()) + "," + D(n.z()) +
-           "," + D(p.plane_in_world.d) + "," + D(p.alpha_deg) + "," + D(p.beta_deg) + "," +
-           D(p.trans_mm) + "," + D(p.sigma_alpha_deg) + "," + D(p.sigma_beta_deg) + "," +
-           D(p.sigma_trans_mm) + "\n";
+      common::AppendCsvRow(&s, p.j, p.t_s, n.x(), n.y(), n.z(), p.plane_in_world.d, p.alpha_deg,
+                           p.beta_deg, p.trans_mm, p.sigma_alpha_deg, p.sigma_beta_deg,
+                           p.sigma_trans_mm);
     }
     common::WriteFileAtomically(truth / "mirror_planes.csv", s);
   }
@@ -248,8 +234,7 @@ void WriteTruth(const fs::path& dir, const SimTruth& t) {
   {
     std::string s = std::string(kDotsHeader) + "\n";
     for (const auto& d : t.dots) {
-      s += d.file + "," + std::to_string(d.beam) + "," + std::to_string(d.j) + "," + D(d.u_px) +
-           "," + D(d.v_px) + "\n";
+      common::AppendCsvRow(&s, d.file, d.beam, d.j, d.u_px, d.v_px);
     }
     common::WriteFileAtomically(truth / "dots.csv", s);
   }
@@ -273,7 +258,7 @@ void WriteTruth(const fs::path& dir, const SimTruth& t) {
   {
     std::string s = std::string(kTrajectoryHeader) + "\n";
     for (const auto& p : t.pose_trajectory) {
-      s += D(p.t_s) + "," + D(p.alpha_deg) + "," + D(p.beta_deg) + "," + D(p.trans_mm) + "\n";
+      common::AppendCsvRow(&s, p.t_s, p.alpha_deg, p.beta_deg, p.trans_mm);
     }
     common::WriteFileAtomically(truth / "pose_trajectory.csv", s);
   }
@@ -282,7 +267,7 @@ void WriteTruth(const fs::path& dir, const SimTruth& t) {
 SimTruth ReadTruth(const fs::path& dir) {
   const fs::path truth = dir / "truth";
   SimTruth t;
-  t.sim_config_yaml = ReadAll(truth / "sim_config.yaml");
+  t.sim_config_yaml = common::ReadFileText(truth / "sim_config.yaml");
   {
     const YAML::Node cfg = LoadYaml(truth / "sim_config.yaml");
     t.seed = Need(cfg, "seed", truth / "sim_config.yaml").as<uint64_t>();

@@ -6,6 +6,8 @@
 #include <numbers>
 #include <stdexcept>
 
+#include "common/units.h"
+
 namespace msmcal::marg {
 
 std::string CoverageOptions::Validate() const {
@@ -74,8 +76,8 @@ std::string DescribeDirection(const Eigen::Vector3d& direction) {
       axes += names[i];
     }
   }
-  const double az = std::atan2(u.y(), u.x()) * 180.0 / std::numbers::pi;
-  const double el = std::asin(std::clamp(u.z(), -1.0, 1.0)) * 180.0 / std::numbers::pi;
+  const double az = common::RadToDeg(std::atan2(u.y(), u.x()));
+  const double el = common::RadToDeg(std::asin(std::clamp(u.z(), -1.0, 1.0)));
   char buf[64];
   std::snprintf(buf, sizeof(buf), " (az %.0f deg, el %.0f deg)", az, el);
   return axes + buf;

@@ -8,15 +8,12 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "common/number_format.h"
+
 namespace msmcal::marg {
 namespace {
 
-std::string Fmt(double v) {
-  std::ostringstream os;
-  os.precision(4);
-  os << v;
-  return os.str();
-}
+std::string Fmt(double v) { return common::FormatSignificant(v, 4); }
 
 double Median(std::vector<double> v) {
   if (v.empty()) return 0;

@@ -6,19 +6,14 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "common/number_format.h"
+#include "common/units.h"
 #include "processing/marg/attitude.h"
 
 namespace msmcal::marg {
 namespace {
 
-constexpr double kRadToDeg = 180.0 / std::numbers::pi;
-
-std::string Fmt(double v) {
-  std::ostringstream os;
-  os.precision(4);
-  os << v;
-  return os.str();
-}
+std::string Fmt(double v) { return common::FormatSignificant(v, 4); }
 
 using Getter = Eigen::Vector3d (*)(const dataset::MargSample&);
 
@@ -102,8 +97,8 @@ std::string CalibrateVectorSensor(const std::vector<Eigen::Vector3d>& free,
            pa.message;
   }
   out->alignment = pa.alignment;
-  out->alignment_roll_deg = pa.roll_rad * kRadToDeg;
-  out->alignment_pitch_deg = pa.pitch_rad * kRadToDeg;
+  out->alignment_roll_deg = pa.roll_rad * common::kDegPerRad;
+  out->alignment_pitch_deg = pa.pitch_rad * common::kDegPerRad;
   out->plane_rms_residual = pa.rms_plane_residual;
   out->plane_turn_deg = pa.turn_deg;
   return "";
@@ -231,8 +226,8 @@ MargCalibrationResult CalibrateMarg(const dataset::MargRecording& plane_rotation
         double roll = 0, pitch = 0;
         AlignmentAngles(axis.normalized(), &roll, &pitch);
         gyro.alignment = AlignmentMatrix(roll, pitch);
-        gyro.alignment_roll_deg = roll * kRadToDeg;
-        gyro.alignment_pitch_deg = pitch * kRadToDeg;
+        gyro.alignment_roll_deg = roll * common::kDegPerRad;
+        gyro.alignment_pitch_deg = pitch * common::kDegPerRad;
       } else {
         result.warnings.push_back("gyroscope: only " + std::to_string(used) +
                                   " plane_rotation samples turn faster than " +
@@ -285,7 +280,7 @@ std::vector<AttitudeRow> SolveAttitudeSeries(const dataset::MargRecording& recor
     AttitudeRow row;
     row.t_s = recording.samples[i].t_s;
     if (sol.valid) {
-      const Eigen::Vector3d rpy = RollPitchYaw(sol.earth_from_body) * kRadToDeg;
+      const Eigen::Vector3d rpy = RollPitchYaw(sol.earth_from_body) * common::kDegPerRad;
       row.roll_deg = rpy(0);
       row.pitch_deg = rpy(1);
       row.yaw_deg = rpy(2);
@@ -335,10 +330,10 @@ DirectionError CompareDirections(const std::vector<Eigen::Vector3d>& measured,
     const double a =
         std::atan2(m.cross(truth[i].normalized()).norm(), m.dot(truth[i].normalized()));
     sum += a * a;
-    err.max_deg = std::max(err.max_deg, a * kRadToDeg);
+    err.max_deg = std::max(err.max_deg, a * common::kDegPerRad);
   }
-  err.rms_deg = measured.empty() ? 0 : std::sqrt(sum / measured.size()) * kRadToDeg;
-  err.yaw_removed_deg = yaw * kRadToDeg;
+  err.rms_deg = measured.empty() ? 0 : std::sqrt(sum / measured.size()) * common::kDegPerRad;
+  err.yaw_removed_deg = yaw * common::kDegPerRad;
   return err;
 }
 

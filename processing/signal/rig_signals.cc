@@ -6,6 +6,8 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "common/number_format.h"
+
 namespace msmcal::signal {
 namespace {
 
@@ -15,12 +17,7 @@ double Phase(const SineDrive& d, double t_s) {
   return 2.0 * kPi * d.frequency_hz * t_s + d.phase_deg * kPi / 180.0;
 }
 
-std::string Fmt(double v) {
-  std::ostringstream os;
-  os.precision(12);
-  os << v;
-  return os.str();
-}
+std::string Fmt(double v) { return common::FormatSignificant(v, 12); }
 
 int64_t ToSteps(const char* name, double f_hz, double resolution_hz) {
   if (!(f_hz > 0.0) || !std::isfinite(f_hz)) {

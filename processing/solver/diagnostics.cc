@@ -7,6 +7,7 @@
 #include <opencv2/imgproc.hpp>
 #include <sstream>
 
+#include "common/number_format.h"
 #include "processing/vision/checkerboard.h"
 
 namespace msmcal::solver {
@@ -20,9 +21,7 @@ std::string CleanText(std::string s) {
 
 std::string Num(double v, int decimals = 3) {
   if (v < 0) return "";
-  char buf[64];
-  std::snprintf(buf, sizeof(buf), "%.*f", decimals, v);
-  return buf;
+  return common::FormatFixed(v, decimals);
 }
 
 // A reason with its numbers replaced by N, so that frames with the same problem count as one.

@@ -4,14 +4,14 @@
 #include <cmath>
 #include <random>
 
+#include "common/units.h"
+
 namespace msmcal::solver {
 namespace {
 
 using geometry::Line;
 using geometry::Plane;
 using geometry::Rigid3d;
-
-constexpr double kDeg = M_PI / 180.0;
 
 // Camera at `centre` looking along `forward` with image x roughly along `right`.
 Rigid3d LookAt(const Eigen::Vector3d& centre, const Eigen::Vector3d& forward,
@@ -53,7 +53,8 @@ SyntheticScene MakeSyntheticScene(const SyntheticSceneOptions& o) {
                            Eigen::Vector3d(1, 0, 0));
   // Beams: aimed near the mirror centre (not exactly through it), from +X.
   for (int b = 0; b < obs.num_beams; ++b) {
-    const double az = o.beam_azimuth_deg[b] * kDeg, el = o.beam_elevation_deg[b] * kDeg;
+    const double az = o.beam_azimuth_deg[b] * common::kRadPerDeg,
+                 el = o.beam_elevation_deg[b] * common::kRadPerDeg;
     const Eigen::Vector3d v(-std::cos(el) * std::cos(az), std::cos(el) * std::sin(az),
                             -std::sin(el));
     const Eigen::Vector3d miss(0, 0.4 * b - 0.3, 0.25 * b);
@@ -76,7 +77,8 @@ SyntheticScene MakeSyntheticScene(const SyntheticSceneOptions& o) {
   const Eigen::Matrix<double, 3, 2> basis = TangentBasis(n0);
   for (int j = 0; j < o.num_planes; ++j) {
     const Eigen::Vector2d tilt(unif(rng), unif(rng));
-    const Eigen::Vector3d n = (n0 + basis * (tilt * o.mirror_amplitude_deg * kDeg)).normalized();
+    const Eigen::Vector3d n =
+        (n0 + basis * (tilt * o.mirror_amplitude_deg * common::kRadPerDeg)).normalized();
     t.planes.push_back(Plane{n, n.dot(mirror_centre) + o.mirror_trans_mm * unif(rng)});
   }
   // Random dot covariance of about dot_sigma_px.

@@ -17,7 +17,10 @@
 #include <sstream>
 #include <string_view>
 
+#include "common/csv_writer.h"
 #include "common/text_io.h"
+#include "common/yaml_fields.h"
+#include "processing/dataset/hall_csv.h"
 #include "sessions/interchange/csv_reader.h"
 
 namespace msmcal::interchange {
@@ -27,8 +30,8 @@ namespace fs = std::filesystem;
 using dataset::BeamRole;
 using dataset::Step2Kind;
 
-constexpr const char* kHallHeader = "mcu_time_us,bx_uT,by_uT,bz_uT";
-constexpr const char* kClockHeader = "mcu_time_us";
+constexpr const char* kHallHeader = dataset::kHallReadingsHeader;
+constexpr const char* kClockHeader = dataset::kHallClockHeader;
 constexpr const char* kMargFullHeader = "t_s,ax_g,ay_g,az_g,gx_dps,gy_dps,gz_dps,mx_uT,my_uT,mz_uT";
 constexpr const char* kMargMagHeader = "t_s,mx_uT,my_uT,mz_uT";
 
@@ -102,15 +105,6 @@ std::string NotANumber(std::string_view s) {
                           s == "-.Inf" || s == ".NaN" || s == ".INF" || s == "-.INF" || s == ".NAN";
   return Quote(s) + (non_finite ? " is not a finite number (nan and inf are not allowed)"
                                 : " is not a number");
-}
-
-void AppendDouble(std::string* out, double v) { common::AppendShortestDouble(out, v); }
-
-template <typename Int>
-void AppendInt(std::string* out, Int v) {
-  char buf[32];
-  auto [ptr, ec] = std::to_chars(buf, buf + sizeof(buf), v);
-  out->append(buf, ptr);
 }
 
 std::string NormaliseHeader(std::string_view line) {
@@ -340,45 +334,25 @@ std::string FormatHallReadings(const std::vector<dataset::HallReading>& readings
   std::string out = std::string(kHallHeader) + "\n";
   out.reserve(out.size() + readings.size() * 48);
   for (const auto& r : readings) {
-    AppendDouble(&out, r.mcu_time_us);
-    out += ',';
-    AppendDouble(&out, r.bx_uT);
-    out += ',';
-    AppendDouble(&out, r.by_uT);
-    out += ',';
-    AppendDouble(&out, r.bz_uT);
-    out += '\n';
+    dataset::AppendHallReadingRow(&out, r.mcu_time_us, r.bx_uT, r.by_uT, r.bz_uT);
   }
   return out;
 }
 
 std::string FormatClockEdges(const std::vector<double>& edges) {
   std::string out = std::string(kClockHeader) + "\n";
-  for (double t : edges) {
-    AppendDouble(&out, t);
-    out += '\n';
-  }
+  for (double t : edges) dataset::AppendClockEdgeRow(&out, t);
   return out;
-}
-
-void AppendRow(std::string* out, std::initializer_list<double> values) {
-  bool first = true;
-  for (double v : values) {
-    if (!first) *out += ',';
-    first = false;
-    AppendDouble(out, v);
-  }
-  *out += '\n';
 }
 
 std::string FormatMarg(const dataset::MargRecording& rec) {
   std::string out = std::string(rec.has_inertial ? kMargFullHeader : kMargMagHeader) + "\n";
   for (const auto& s : rec.samples) {
     if (rec.has_inertial) {
-      AppendRow(&out, {s.t_s, s.ax_g, s.ay_g, s.az_g, s.gx_dps, s.gy_dps, s.gz_dps, s.mx_uT,
-                       s.my_uT, s.mz_uT});
+      common::AppendCsvRow(&out, s.t_s, s.ax_g, s.ay_g, s.az_g, s.gx_dps, s.gy_dps, s.gz_dps,
+                           s.mx_uT, s.my_uT, s.mz_uT);
     } else {
-      AppendRow(&out, {s.t_s, s.mx_uT, s.my_uT, s.mz_uT});
+      common::AppendCsvRow(&out, s.t_s, s.mx_uT, s.my_uT, s.mz_uT);
     }
   }
   return out;
@@ -392,18 +366,11 @@ class YamlReader {
   explicit YamlReader(std::string display) : display_(std::move(display)) {}
 
   YAML::Node Load(const std::string& text) const {
-    try {
-      return YAML::Load(text);
-    } catch (const YAML::Exception& e) {
-      Fail(display_, e.mark.is_null() ? 0 : e.mark.line + 1, "YAML syntax error: " + e.msg);
-    }
+    return common::YamlFields(display_, [](const std::string& m) { throw InterchangeError(m); })
+        .Load(text, "YAML syntax error: ");
   }
 
-  static int Line(const YAML::Node& node) {
-    if (!node.IsDefined()) return 0;
-    const YAML::Mark m = node.Mark();
-    return m.is_null() ? 0 : m.line + 1;
-  }
+  static int Line(const YAML::Node& node) { return common::YamlLine(node); }
 
   [[noreturn]] void FailAt(const YAML::Node& node, const std::string& field,
                            const std::string& what) const {
@@ -856,11 +823,7 @@ void CheckImage(const fs::path& dir, const std::string& file, const std::string&
 
 // ------------------------------------------------------------------------------ public functions
 
-std::string FormatDouble(double value) {
-  std::string out;
-  AppendDouble(&out, value);
-  return out;
-}
+std::string FormatDouble(double value) { return common::ShortestDouble(value); }
 
 void WriteFileAtomically(const std::filesystem::path& file, const std::string& contents) {
   try {

@@ -9,6 +9,7 @@
 #include <stdexcept>
 #include <utility>
 
+#include "common/units.h"
 #include "processing/vision/checkerboard.h"
 #include "sessions/interchange/interchange_io.h"
 
@@ -109,7 +110,7 @@ cv::Mat AnnotatePreview(const cv::Mat& image, const GateResult& gate, const Prev
     Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eig(0.5 * (d.cov_px2 + d.cov_px2.transpose()));
     const Eigen::Vector2d lambda = eig.eigenvalues().cwiseMax(0.0);
     const Eigen::Vector2d major = eig.eigenvectors().col(1);
-    const double angle_deg = std::atan2(major.y(), major.x()) * 180.0 / M_PI;
+    const double angle_deg = common::RadToDeg(std::atan2(major.y(), major.x()));
     const int a = std::max(1, static_cast<int>(std::lround(2 * std::sqrt(lambda(1)) * s * kOne)));
     const int b = std::max(1, static_cast<int>(std::lround(2 * std::sqrt(lambda(0)) * s * kOne)));
     cv::ellipse(out, c, cv::Size(a, b), angle_deg, 0, 360, cv::Scalar(0, 255, 255), 1, cv::LINE_AA,

@@ -7,6 +7,7 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "common/number_format.h"
 #include "drivers/generator/rig_generators.h"
 #include "processing/plan/frame_design.h"
 #include "processing/signal/rig_signals.h"
@@ -15,11 +16,7 @@
 namespace msmcal::plan {
 namespace {
 
-std::string Num(double v) {
-  char buf[64];
-  std::snprintf(buf, sizeof(buf), "%.6g", v);
-  return buf;
-}
+std::string Num(double v) { return common::FormatSignificant(v, 6); }
 
 std::vector<SignalPoint> SignalPoints(const rig::RigFile& rig,
                                       const std::vector<dataset::Trigger>& triggers) {

@@ -9,6 +9,7 @@
 #include <tuple>
 
 #include "common/text_io.h"
+#include "common/yaml_fields.h"
 #include "sessions/interchange/interchange_io.h"
 
 namespace msmcal::results {
@@ -102,9 +103,14 @@ std::string FormatMargCalibrationYaml(const MargCalibrationFile& file,
 
 namespace {
 
+common::YamlFields Fields(const fs::path& file) {
+  return common::YamlFields(file.string(),
+                            [](const std::string& m) { throw interchange::InterchangeError(m); });
+}
+
+// "<file>:<line>: <what>" as an InterchangeError.
 [[noreturn]] void YamlFail(const fs::path& file, const YAML::Node& node, const std::string& what) {
-  const int line = node.IsDefined() ? node.Mark().line + 1 : 0;
-  throw interchange::InterchangeError(file.string() + ":" + std::to_string(line) + ": " + what);
+  Fields(file).FailText(node, what);
 }
 
 Eigen::Vector3d ReadVec(const fs::path& file, const YAML::Node& parent, const std::string& key,
@@ -135,13 +141,7 @@ MargCalibrationFile ReadMargCalibrationYaml(const fs::path& file) {
 }
 
 MargCalibrationFile ParseMargCalibrationYaml(const std::string& text, const fs::path& file) {
-  YAML::Node root;
-  try {
-    root = YAML::Load(text);
-  } catch (const YAML::Exception& e) {
-    throw interchange::InterchangeError(file.string() + ":" + std::to_string(e.mark.line + 1) +
-                                        ": " + e.msg);
-  }
+  const YAML::Node root = Fields(file).Load(text);
   if (!root.IsMap()) YamlFail(file, root, "expected a mapping");
   if (!root["format"] || root["format"].as<std::string>("") != kCalibrationFormat) {
     YamlFail(file, root["format"] ? root["format"] : root,

@@ -8,7 +8,9 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "common/csv_writer.h"
 #include "common/text_io.h"
+#include "common/yaml_fields.h"
 #include "processing/solver/mle.h"
 #include "sessions/interchange/csv_reader.h"
 #include "sessions/interchange/interchange_io.h"
@@ -32,23 +34,6 @@ constexpr const char* kValidationDotsHeader =
 constexpr const char* kResidualsHeader =
     "family,group,observed_x_px,observed_y_px,whitened_1,whitened_2";
 constexpr const char* kHallPosesHeader = "mcu_time_us,t_s,alpha_deg,beta_deg,trans_mm";
-
-// One CSV row: integers first, then numbers in the shortest round-trip form.
-void AppendRow(std::string* out, std::initializer_list<int> ints,
-               std::initializer_list<double> values) {
-  bool first = true;
-  for (int v : ints) {
-    if (!first) *out += ',';
-    first = false;
-    *out += std::to_string(v);
-  }
-  for (double v : values) {
-    if (!first) *out += ',';
-    first = false;
-    common::AppendShortestDouble(out, v);
-  }
-  *out += '\n';
-}
 
 }  // namespace
 
@@ -116,9 +101,9 @@ std::string FormatMirrorPlanesCsv(const std::vector<dataset::MirrorPlaneRow>& ro
   std::string out = std::string(kMirrorPlanesHeader) + "\n";
   for (const auto& r : rows) {
     const auto& n = r.plane_in_world.n;
-    AppendRow(&out, {r.j},
-              {r.t_s, n.x(), n.y(), n.z(), r.plane_in_world.d, r.alpha_deg, r.beta_deg, r.trans_mm,
-               r.sigma_alpha_deg, r.sigma_beta_deg, r.sigma_trans_mm});
+    common::AppendCsvRow(&out, r.j, r.t_s, n.x(), n.y(), n.z(), r.plane_in_world.d, r.alpha_deg,
+                         r.beta_deg, r.trans_mm, r.sigma_alpha_deg, r.sigma_beta_deg,
+                         r.sigma_trans_mm);
   }
   return out;
 }
@@ -141,7 +126,7 @@ std::vector<dataset::BeamRow> ParseBeamsCsv(const std::string& text,
 std::string FormatBeamsCsv(const std::vector<dataset::BeamRow>& rows) {
   std::string out = std::string(kBeamsHeader) + "\n";
   for (const auto& r : rows)
-    AppendRow(&out, {r.beam}, {r.p.x(), r.p.y(), r.p.z(), r.v.x(), r.v.y(), r.v.z()});
+    common::AppendCsvRow(&out, r.beam, r.p.x(), r.p.y(), r.p.z(), r.v.x(), r.v.y(), r.v.z());
   return out;
 }
 
@@ -162,7 +147,7 @@ std::vector<dataset::ValidationRow> ParseValidationCsv(const std::string& text,
 
 std::string FormatValidationCsv(const std::vector<dataset::ValidationRow>& rows) {
   std::string out = std::string(kValidationHeader) + "\n";
-  for (const auto& r : rows) AppendRow(&out, {r.beam, r.j}, {r.err_px, r.err_deg});
+  for (const auto& r : rows) common::AppendCsvRow(&out, r.beam, r.j, r.err_px, r.err_deg);
   return out;
 }
 
@@ -192,9 +177,8 @@ std::vector<ValidationDetailRow> ReadValidationDetailCsv(const fs::path& file) {
 void WriteValidationDetailCsv(const fs::path& file, const std::vector<ValidationDetailRow>& rows) {
   std::string out = std::string(kValidationDetailHeader) + "\n";
   for (const auto& r : rows)
-    AppendRow(&out, {r.beam, r.j},
-              {r.err_px, r.err_deg, r.baseline_err_px, r.baseline_err_deg, r.predicted_sigma_px,
-               r.normalised_error});
+    common::AppendCsvRow(&out, r.beam, r.j, r.err_px, r.err_deg, r.baseline_err_px,
+                         r.baseline_err_deg, r.predicted_sigma_px, r.normalised_error);
   common::WriteFileAtomically(file, out);
 }
 
@@ -271,7 +255,7 @@ std::vector<HallPoseRow> ReadHallPosesCsv(const fs::path& file) {
 void WriteHallPosesCsv(const fs::path& file, const std::vector<HallPoseRow>& rows) {
   std::string out = std::string(kHallPosesHeader) + "\n";
   for (const auto& r : rows)
-    AppendRow(&out, {}, {r.mcu_time_us, r.t_s, r.alpha_deg, r.beta_deg, r.trans_mm});
+    common::AppendCsvRow(&out, r.mcu_time_us, r.t_s, r.alpha_deg, r.beta_deg, r.trans_mm);
   common::WriteFileAtomically(file, out);
 }
 
@@ -592,13 +576,13 @@ double Num(const YAML::Node& n, const std::string& file, const std::string& fiel
   try {
     return n.as<double>();
   } catch (const YAML::Exception&) {
-    Fail(file, field, "expected a number (line " + std::to_string(n.Mark().line + 1) + ")");
+    Fail(file, field, "expected a number (line " + std::to_string(common::YamlLine(n)) + ")");
   }
 }
 
 std::string Str(const YAML::Node& n, const std::string& file, const std::string& field) {
   if (!n.IsScalar()) {
-    Fail(file, field, "expected a text (line " + std::to_string(n.Mark().line + 1) + ")");
+    Fail(file, field, "expected a text (line " + std::to_string(common::YamlLine(n)) + ")");
   }
   return n.Scalar();
 }

@@ -11,7 +11,9 @@
 #include <variant>
 #include <vector>
 
+#include "common/file_text.h"
 #include "common/text_io.h"
+#include "common/yaml_fields.h"
 
 namespace msmcal::results {
 namespace {
@@ -96,13 +98,10 @@ std::vector<Knob> Knobs(solver::PipelineOptions& o) {
   };
 }
 
+// "<path>:<line>: <key>: <what>" (common/yaml_fields.h).
 [[noreturn]] void Fail(const std::string& path, const YAML::Node& n, const std::string& key,
                        const std::string& what) {
-  std::ostringstream s;
-  s << path;
-  if (n.Mark().line >= 0) s << ':' << n.Mark().line + 1;
-  s << ": " << key << ": " << what;
-  throw std::runtime_error(s.str());
+  common::YamlFields(path).Fail(n, key, what);
 }
 
 void Assign(const std::string& path, const YAML::Node& n, const Knob& k) {
@@ -179,14 +178,8 @@ void Walk(const std::string& path, const YAML::Node& node, const std::string& pr
 solver::PipelineOptions ReadSolveOptions(const std::string& path,
                                          const solver::PipelineOptions& defaults) {
   solver::PipelineOptions o = defaults;
-  YAML::Node root;
-  try {
-    root = YAML::LoadFile(path);
-  } catch (const YAML::BadFile&) {
-    throw std::runtime_error(path + ": cannot read the file");
-  } catch (const YAML::Exception& e) {
-    throw std::runtime_error(path + ":" + std::to_string(e.mark.line + 1) + ": " + e.msg);
-  }
+  const YAML::Node root =
+      common::YamlFields(path).Load(common::ReadFileText(path, "cannot read the file"));
   std::set<std::string> seen;
   if (!root.IsNull()) Walk(path, root, "", Knobs(o), &seen);
   if (const std::string e = o.Validate(); !e.empty())

@@ -11,123 +11,69 @@
 #include <sstream>
 #include <stdexcept>
 
-#include "common/text_io.h"
+#include "common/yaml_fields.h"
 #include "processing/signal/rig_signals.h"
 
 namespace msmcal::rig {
 namespace {
 
-// Whole numbers as integers ("200000", not "2e+05"), others shortest round-trip.
-std::string Num(double v) {
-  if (std::abs(v) < 1e15 && v == std::floor(v)) return std::to_string(static_cast<int64_t>(v));
-  return common::ShortestDouble(v);
-}
+using common::FieldNumber;
 
-// Reads one document, failing as "origin:line: field: what".
+// Reads one document over the shared field reader (common/yaml_fields.h), failing as
+// "origin:line: field<what>" (`what` is ": problem" or " = value: rule").
 class Reader {
  public:
-  explicit Reader(std::string origin) : origin_(std::move(origin)) {}
+  explicit Reader(std::string origin) : fields_(std::move(origin)) {}
 
   [[noreturn]] void Fail(const YAML::Node& node, const std::string& field,
                          const std::string& what) const {
-    std::ostringstream os;
-    os << origin_;
-    if (node.IsDefined() && node.Mark().line >= 0) os << ":" << node.Mark().line + 1;
-    os << ": " << field << what;
-    throw std::runtime_error(os.str());
+    fields_.FailText(node, field + what);
   }
 
   // The mapping `parent[key]`; unknown keys refused. Missing: a null node when `optional`.
   YAML::Node Map(const YAML::Node& parent, const std::string& key, const std::string& field,
                  const std::set<std::string>& allowed, bool optional = false) const {
-    const YAML::Node n = parent[key];
-    if (!n) {
-      if (optional) return YAML::Node();
-      Fail(parent, field, ": missing");
-    }
-    if (!n.IsMap()) Fail(n, field, ": must be a mapping");
-    for (const auto& kv : n) {
-      const std::string k = kv.first.as<std::string>();
-      if (!allowed.count(k)) Fail(kv.first, field + "." + k, ": unknown key");
-    }
-    return n;
+    return fields_.Map(parent, key, field, allowed, optional);
   }
 
   // A finite number in [lo, hi] (lo excluded when `lo_open`).
   double Number(const YAML::Node& parent, const std::string& key, const std::string& field,
                 std::optional<double> def, double lo, double hi, bool lo_open = false) const {
-    const YAML::Node n = parent ? parent[key] : YAML::Node();
-    if (!n) {
-      if (def) return *def;
-      Fail(parent, field, ": missing");
-    }
-    return NumberAt(n, field, lo, hi, lo_open);
+    return fields_.Number(parent, key, field, def, Rule(lo, hi, lo_open));
   }
 
   double NumberAt(const YAML::Node& n, const std::string& field, double lo, double hi,
                   bool lo_open = false) const {
-    const std::string text = n.IsScalar() ? n.Scalar() : "";
-    double v = 0;
-    try {
-      v = n.as<double>();
-    } catch (const YAML::Exception&) {
-      Fail(n, field, ": must be a number, got '" + text + "'");
-    }
-    if (!std::isfinite(v)) Fail(n, field, " = " + text + ": must be a finite number");
-    if ((lo_open ? !(v > lo) : !(v >= lo)) || !(v <= hi)) {
-      Fail(n, field,
-           " = " + Num(v) + ": must be in " + (lo_open ? "(" : "[") + Num(lo) + ", " + Num(hi) +
-               "]");
-    }
-    return v;
+    return fields_.NumberAt(n, field, Rule(lo, hi, lo_open));
   }
 
   int Int(const YAML::Node& parent, const std::string& key, const std::string& field,
           std::optional<int> def, int lo, int hi) const {
-    const YAML::Node n = parent ? parent[key] : YAML::Node();
-    if (!n) {
-      if (def) return *def;
-      Fail(parent, field, ": missing");
-    }
-    return IntAt(n, field, lo, hi);
+    return fields_.Int(parent, key, field, def, lo, hi);
   }
 
   int IntAt(const YAML::Node& n, const std::string& field, int lo, int hi) const {
-    int v = 0;
-    try {
-      v = n.as<int>();
-    } catch (const YAML::Exception&) {
-      Fail(n, field, ": must be an integer, got '" + (n.IsScalar() ? n.Scalar() : "") + "'");
-    }
-    if (v < lo || v > hi) {
-      Fail(n, field,
-           " = " + std::to_string(v) + ": must be in [" + std::to_string(lo) + ", " +
-               std::to_string(hi) + "]");
-    }
-    return v;
+    return fields_.IntAt(n, field, lo, hi);
   }
 
   bool Bool(const YAML::Node& parent, const std::string& key, const std::string& field,
             bool def) const {
-    const YAML::Node n = parent ? parent[key] : YAML::Node();
-    if (!n) return def;
-    try {
-      return n.as<bool>();
-    } catch (const YAML::Exception&) {
-      Fail(n, field, ": must be true or false, got '" + (n.IsScalar() ? n.Scalar() : "") + "'");
-    }
+    return fields_.Bool(parent, key, field, def);
   }
 
   std::string String(const YAML::Node& parent, const std::string& key,
                      const std::string& field) const {
-    const YAML::Node n = parent[key];
-    if (!n) Fail(parent, field, ": missing");
-    if (!n.IsScalar() || n.Scalar().empty()) Fail(n, field, ": must be a non-empty string");
-    return n.Scalar();
+    return fields_.String(parent, key, field, std::nullopt, /*non_empty=*/true);
   }
 
+  YAML::Node Load(const std::string& text) const { return fields_.Load(text); }
+
  private:
-  std::string origin_;
+  static common::NumberRule Rule(double lo, double hi, bool lo_open) {
+    return lo_open ? common::NumberRule::Above(lo, hi) : common::NumberRule::In(lo, hi);
+  }
+
+  common::YamlFields fields_;
 };
 
 // The node a validation message's leading field path names ("generators.unit1.ch1 (...): ..."),
@@ -174,17 +120,18 @@ void ReadCamera(const Reader& r, const YAML::Node& root, double pattern_period_s
   const double period_us = 1e6 / c->frame_rate_hz;
   if (c->exposure_us > period_us) {
     r.Fail(n["exposure_us"], f + ".exposure_us",
-           " = " + Num(c->exposure_us) +
-               ": must be <= the frame period 1e6 / frame_rate_hz = " + Num(period_us) + " us");
+           " = " + FieldNumber(c->exposure_us) +
+               ": must be <= the frame period 1e6 / frame_rate_hz = " + FieldNumber(period_us) +
+               " us");
   }
   // A frame collects every trigger of its pattern only when it is exposed for a whole pattern
   // period (each trigger fires once per period).
   if (pattern_period_s > 0 && c->exposure_us < pattern_period_s * 1e6 * (1 - 1e-9)) {
     r.Fail(n["exposure_us"], f + ".exposure_us",
-           " = " + Num(c->exposure_us) +
+           " = " + FieldNumber(c->exposure_us) +
                ": must be >= the drives' pattern period (generators.signals.drive: 1 / gcd of "
                "the fast and slow frequencies) = " +
-               Num(pattern_period_s * 1e6) +
+               FieldNumber(pattern_period_s * 1e6) +
                " us, so that a frame collects every trigger of its pattern (lower "
                "camera.frame_rate_hz to at most 1e6 / exposure_us)");
   }
@@ -240,13 +187,8 @@ RigFile ParseRigFile(const std::string& yaml_text, const std::string& origin) {
   RigFile rf;
   rf.origin = origin;
   rf.text = yaml_text;
-  YAML::Node root;
-  try {
-    root = YAML::Load(yaml_text);
-  } catch (const YAML::Exception& e) {
-    throw std::runtime_error(origin + ":" + std::to_string(e.mark.line + 1) + ": " + e.msg);
-  }
   const Reader r(origin);
+  const YAML::Node root = r.Load(yaml_text);
   if (!root.IsMap()) r.Fail(root, "(root)", ": must be a mapping of sections");
   const std::set<std::string> sections = {"generators", "camera",        "hall_mcu", "boards",
                                           "beams",      "sliding_plate", "step1",    "step2"};

@@ -9,6 +9,8 @@
 #include <stdexcept>
 #include <utility>
 
+#include "common/yaml_fields.h"
+
 namespace msmcal::sweep {
 namespace {
 
@@ -19,10 +21,9 @@ constexpr size_t kMaxPoints = 10000;
 constexpr int kMaxRepeats = 1000;
 constexpr size_t kMaxFolderName = 120;
 
+// "<source>:<line>: <what>" (common/yaml_fields.h).
 [[noreturn]] void Fail(const std::string& source, const YAML::Node& at, const std::string& what) {
-  const int line = at.IsDefined() && at.Mark().line >= 0 ? at.Mark().line + 1 : 0;
-  throw std::runtime_error(source + (line > 0 ? ":" + std::to_string(line) : std::string()) + ": " +
-                           what);
+  common::YamlFields(source).FailText(at, what);
 }
 
 std::vector<std::string> SplitPath(const std::string& path) {
@@ -62,26 +63,6 @@ void SetPath(YAML::Node node, const std::vector<std::string>& parts, size_t i,
   SetPath(node[parts[i]], parts, i + 1, value);
 }
 
-bool IsNumber(const YAML::Node& n) {
-  if (!n.IsScalar()) return false;
-  try {
-    (void)n.as<double>();
-    return true;
-  } catch (const YAML::Exception&) {
-    return false;
-  }
-}
-
-bool IsBool(const YAML::Node& n) {
-  if (!n.IsScalar()) return false;
-  try {
-    (void)n.as<bool>();
-    return true;
-  } catch (const YAML::Exception&) {
-    return false;
-  }
-}
-
 // Checks that `value` has the form of the schema leaf `schema` (number, bool, list of numbers,
 // list of lists); names the key and the expected form.
 void CheckLeaf(const std::string& source, const std::string& key, const YAML::Node& schema,
@@ -89,9 +70,9 @@ void CheckLeaf(const std::string& source, const std::string& key, const YAML::No
   if (schema.IsScalar()) {
     const std::string s = schema.Scalar();
     if (s == "true" || s == "false") {
-      if (!IsBool(value)) Fail(source, value, key + ": expected true or false");
-    } else if (IsNumber(schema)) {
-      if (!IsNumber(value)) Fail(source, value, key + ": expected a number");
+      if (!common::IsYamlBool(value)) Fail(source, value, key + ": expected true or false");
+    } else if (common::IsYamlNumber(schema)) {
+      if (!common::IsYamlNumber(value)) Fail(source, value, key + ": expected a number");
     } else if (!value.IsScalar() || value.Scalar() != s) {
       // A text field (a rig file's host, camera kind, channel role) is not a sweep option; the
       // plan's self-contained copy (SweepPlanToYaml) carries it with its default value.
@@ -106,8 +87,8 @@ void CheckLeaf(const std::string& source, const std::string& key, const YAML::No
       if (nested) {
         if (!e.IsSequence()) Fail(source, e, key + ": expected a list of lists of numbers");
         for (const auto& x : e)
-          if (!IsNumber(x)) Fail(source, x, key + ": expected numbers");
-      } else if (!IsNumber(e)) {
+          if (!common::IsYamlNumber(x)) Fail(source, x, key + ": expected numbers");
+      } else if (!common::IsYamlNumber(e)) {
         Fail(source, e, key + ": expected a list of numbers");
       }
     }
@@ -201,12 +182,7 @@ SweepPlan ParseSweepPlan(const std::string& yaml_text, const std::string& source
   if (!parameters) throw std::invalid_argument("ParseSweepPlan: no SweepParameters");
   const SweepParameters& params = *parameters;
   const std::string noun = params.Noun();
-  YAML::Node root;
-  try {
-    root = YAML::Load(yaml_text);
-  } catch (const YAML::Exception& e) {
-    throw std::runtime_error(source_name + ":" + std::to_string(e.mark.line + 1) + ": " + e.msg);
-  }
+  const YAML::Node root = common::YamlFields(source_name).Load(yaml_text);
   if (!root.IsMap())
     throw std::runtime_error(source_name + ": expected a mapping at the top level");
   static const std::set<std::string> kKeys = {"base_config", "base",  "axes",
@@ -252,7 +228,7 @@ SweepPlan ParseSweepPlan(const std::string& yaml_text, const std::string& source
     for (const auto& kv : ax) {
       SweepAxis axis;
       axis.path = kv.first.as<std::string>();
-      axis.line = kv.first.Mark().line + 1;
+      axis.line = common::YamlLine(kv.first);
       const YAML::Node s = Lookup(schema, SplitPath(axis.path));
       if (!s.IsDefined() || s.IsMap())
         Fail(source_name, kv.first,

@@ -4,6 +4,7 @@
 
 #include <stdexcept>
 
+#include "common/yaml_fields.h"
 #include "drivers/hall_mcu/hall_mcu_config.h"
 #include "sessions/orchestrator/orchestrator.h"
 
@@ -16,11 +17,9 @@ namespace {
 // Replays nest at most this deep (a replay of a replay of ...): guards against a cycle.
 constexpr int kMaxReplayDepth = 16;
 
+// root[key], a string ("<origin>:<line>: <key>: missing" / "must be a string").
 std::string RequiredString(const YAML::Node& root, const char* key, const std::string& origin) {
-  const YAML::Node n = root[key];
-  if (!n || !n.IsScalar())
-    throw std::runtime_error(origin + ": key '" + key + "' missing or not a string");
-  return n.as<std::string>();
+  return common::YamlFields(origin).String(root, key, key);
 }
 
 }  // namespace
@@ -37,12 +36,7 @@ std::string ReplayRunConfigYaml(const fs::path& source, const SourceRun& run) {
 
 SourceRun ParseReplayRunConfigYaml(const std::string& yaml_text, const std::string& origin,
                                    fs::path* source) {
-  YAML::Node root;
-  try {
-    root = YAML::Load(yaml_text);
-  } catch (const YAML::Exception& e) {
-    throw std::runtime_error(origin + ": line " + std::to_string(e.mark.line + 1) + ": " + e.msg);
-  }
+  const YAML::Node root = common::YamlFields(origin).Load(yaml_text);
   if (!root.IsMap()) throw std::runtime_error(origin + ": expected a YAML map");
   SourceRun run;
   run.kind = RequiredString(root, "source_run_kind", origin);
@@ -109,12 +103,7 @@ RigSetup SetupFromSourceRun(const SourceRun& run) {
     // rig_yaml: <the rig configuration's text>} (app/session_flow.cc RunLabAcquisition); a bare
     // rig configuration is accepted too.
     const std::string origin = "journal config_yaml (lab run)";
-    YAML::Node root;
-    try {
-      root = YAML::Load(run.config_yaml);
-    } catch (const YAML::Exception& e) {
-      throw std::runtime_error(origin + ": line " + std::to_string(e.mark.line + 1) + ": " + e.msg);
-    }
+    const YAML::Node root = common::YamlFields(origin).Load(run.config_yaml);
     std::string rig_yaml = run.config_yaml;
     if (root.IsMap() && root["rig_yaml"]) rig_yaml = RequiredString(root, "rig_yaml", origin);
     const std::string rig_origin = origin + " rig_yaml";

@@ -3,6 +3,7 @@
 #include <stdexcept>
 #include <utility>
 
+#include "common/check.h"
 #include "mocks/generator/mock_server.h"
 
 namespace msmcal::twin {
@@ -59,8 +60,8 @@ int DemoRig::generators_port(int unit) const {
 }
 
 sim::MockGeneratorPair& DemoRig::generators() {
-  if (!generators_)
-    throw std::logic_error("DemoRig::generators(): the generators are served by another process");
+  MSMCAL_CHECK(generators_)
+      << "DemoRig::generators(): the generators are served by another process";
   return *generators_;
 }
 

@@ -53,7 +53,8 @@ class DemoRig {
   const sim::RigSimulator& sim() const { return *sim_; }
   std::shared_ptr<const sim::RigSimulator> shared_sim() const { return sim_; }
   SimulatedWorld& world() { return *world_; }
-  // The rig's own generator pair; not with external generators (then a std::logic_error).
+  // The rig's own generator pair; not with external generators (calling it then is a bug:
+  // MSMCAL_CHECK aborts).
   sim::MockGeneratorPair& generators();
   int generators_port(int unit) const;  // TCP port of unit 1 or 2
   sim::MockGvCamera& camera() { return *camera_; }

@@ -7,6 +7,7 @@
 #include <Eigen/Geometry>
 #include <numbers>
 
+#include "common/units.h"
 #include "mocks/render/ray_map.h"
 #include "mocks/render/renderer.h"
 
@@ -28,7 +29,7 @@ geometry::CameraModel TenMegapixelCamera() {
 SceneBoard Board(const BoardSpec& spec, const Eigen::Vector3d& centre, double tilt_deg,
                  const Eigen::Vector3d& axis) {
   const Eigen::Matrix3d r =
-      Eigen::AngleAxisd(tilt_deg * std::numbers::pi / 180, axis.normalized()).toRotationMatrix();
+      Eigen::AngleAxisd(common::DegToRad(tilt_deg), axis.normalized()).toRotationMatrix();
   const Eigen::Vector3d c(0.5 * (spec.cols - 1) * spec.square_mm,
                           0.5 * (spec.rows - 1) * spec.square_mm, 0);
   return SceneBoard{spec, geometry::Rigid3d(r, centre - r * c)};

@@ -6,6 +6,7 @@
 #include <opencv2/imgproc.hpp>
 #include <random>
 
+#include "common/units.h"
 #include "processing/vision/checkerboard.h"
 #include "processing/vision/dots.h"
 
@@ -122,7 +123,8 @@ std::vector<VariedBoard> VariedBoards() {
         flat(cv::Rect((i + 2) * sq - sq / 2, (j + 2) * sq - sq / 2, sq, sq)) = 0.08f;
   for (int k = 0; k < 60; ++k) {
     const double square_px = std::exp(u(std::log(8.0), std::log(60.0)));
-    const double tilt = u(0, 60) * M_PI / 180, axis = u(0, M_PI), roll = u(0, 2 * M_PI);
+    const double tilt = msmcal::common::DegToRad(u(0, 60)), axis = u(0, M_PI),
+                 roll = u(0, 2 * M_PI);
     const double w = (cols + 3) * square_px, h = (rows + 3) * square_px;
     // Corners of the board in the image: a tilted rectangle under a weak perspective.
     std::vector<cv::Point2f> src = {

@@ -9,15 +9,13 @@
 #include <string>
 #include <vector>
 
+#include "common/units.h"
 #include "processing/dataset/recording.h"
 #include "processing/geometry/camera_model.h"
 #include "processing/geometry/rigid3.h"
 #include "processing/solver/solve_types.h"
 
 namespace msmcal::solver {
-
-constexpr double kRadToDeg = 180.0 / M_PI;
-constexpr double kDegToRad = M_PI / 180.0;
 
 // "13x8": a board's inner-corner grid, for messages.
 std::string SizeText(const dataset::BoardSpec& b);

@@ -7,6 +7,7 @@
 #include <random>
 #include <sstream>
 
+#include "common/units.h"
 #include "processing/geometry/mirror_frame.h"
 
 namespace msmcal::solver {
@@ -183,7 +184,7 @@ TriggerAssignment AssignTriggerSlots(const std::vector<Step2View>& s2, std::vect
   const Rigid3d provisional = geometry::MirrorHomeFrame(n0, fast0, Eigen::Vector3d::Zero());
   auto angles_of = [&](const Plane& p) {
     const auto pose = geometry::PoseFromWorldPlane(provisional, p);
-    return Eigen::Vector2d(pose.alpha_rad * kRadToDeg, pose.beta_rad * kRadToDeg);
+    return Eigen::Vector2d(pose.alpha_rad * common::kDegPerRad, pose.beta_rad * common::kDegPerRad);
   };
   {
     std::vector<TriggerFrame> tframes(s2.size());

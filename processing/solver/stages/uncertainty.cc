@@ -5,6 +5,7 @@
 #include <cmath>
 #include <map>
 
+#include "common/units.h"
 #include "processing/geometry/mirror_frame.h"
 #include "processing/solver/numeric_diff.h"
 #include "processing/solver/stages/common.h"
@@ -81,7 +82,8 @@ std::vector<dataset::MirrorPlaneRow> ScanPlaneRows(
   for (const auto& t : triggers) t_of_j[t.j] = t.t_s;
   auto pose_vec = [&](const Rigid3d& frame, const Plane& p) {
     const auto pose = geometry::PoseFromWorldPlane(frame, p);
-    return Eigen::Vector3d(pose.alpha_rad * kRadToDeg, pose.beta_rad * kRadToDeg, pose.trans_mm);
+    return Eigen::Vector3d(pose.alpha_rad * common::kDegPerRad, pose.beta_rad * common::kDegPerRad,
+                           pose.trans_mm);
   };
   const std::vector<int> scan_planes = ScanPlanesByJ(plane_keys, roles);
   for (int p : scan_planes) {

@@ -6,6 +6,7 @@
 #include <map>
 #include <optional>
 
+#include "common/units.h"
 #include "processing/solver/numeric_diff.h"
 #include "processing/solver/stages/common.h"
 
@@ -41,7 +42,7 @@ double MeanSpanningAngleDeg(const std::vector<ReflectedDot>& reflected_dots,
     const Line& la = est.beams[est_beams[0]];
     const Line& lb = est.beams[est_beams[1]];
     const Eigen::Vector3d na = la.v.cross(a->second) + la.m, nb = lb.v.cross(b->second) + lb.m;
-    double ang = geometry::AngleBetween(na, nb) * kRadToDeg;
+    double ang = geometry::AngleBetween(na, nb) * common::kDegPerRad;
     if (ang > 90) ang = 180 - ang;
     sum += ang;
     ++cnt;
@@ -64,7 +65,7 @@ ValidationResult ValidateHeldOutBeams(const Observations& obs,
     const auto xo = BackProjectToBoard(obs.camera, est.c2_from_world, obs_px);
     const auto xp = BackProjectToBoard(obs.camera, est.c2_from_world, pred_px);
     if (!h || !xo || !xp) return 0.0;
-    return geometry::AngleBetween(*xo - *h, *xp - *h) * kRadToDeg;
+    return geometry::AngleBetween(*xo - *h, *xp - *h) * common::kDegPerRad;
   };
   // Per kept dot, what the joint covariance needs: the prediction's Jacobian over
   // [plane (3), c2 (6), beam (4)] and the dot's own covariance (with its variance factor).

@@ -87,8 +87,9 @@ TEST(RigConfigTest, AnInfiniteLimitIsRefusedAtItsLine) {
     ParseRigGeneratorConfig(text, "rig.yaml");
     FAIL() << "an infinite limit must be refused";
   } catch (const std::runtime_error& e) {
-    EXPECT_NE(std::string(e.what()).find("rig.yaml:17: generators.unit1.channels.1.max_vpp: must "
-                                         "be a finite number, got '.inf'"),
+    EXPECT_NE(std::string(e.what()).find("rig.yaml:17: generators.unit1.channels.1.max_vpp = .inf: "
+                                         "must be a finite number (inf is accepted only for "
+                                         "load_ohm: high impedance)"),
               std::string::npos)
         << e.what();
   }

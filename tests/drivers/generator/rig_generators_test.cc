@@ -8,6 +8,7 @@
 #include <atomic>
 #include <cmath>
 
+#include "common/units.h"
 #include "test_rig.h"
 
 namespace msmcal::gen {
@@ -92,9 +93,9 @@ TEST(RigGeneratorsTest, MockSignalsMatchTheDesign) {
     EXPECT_NEAR(r.pair.unit(1).SignalAt(2, t_ns),
                 signal::SineValue(r.config.signals.slow, edges_s[j]), 1e-5);
     const double slack = 2 * pi * fast.frequency_hz * q;
-    EXPECT_GT(std::cos(2 * pi * fast.frequency_hz * edges_s[j] + fast.phase_deg * pi / 180),
+    EXPECT_GT(std::cos(2 * pi * fast.frequency_hz * edges_s[j] + common::DegToRad(fast.phase_deg)),
               -slack);
-    EXPECT_GT(std::cos(2 * pi * slow.frequency_hz * edges_s[j] + slow.phase_deg * pi / 180),
+    EXPECT_GT(std::cos(2 * pi * slow.frequency_hz * edges_s[j] + common::DegToRad(slow.phase_deg)),
               -slack);
   }
   // Clock: rising edge at pattern phase 0 of every period.

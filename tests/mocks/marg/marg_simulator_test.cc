@@ -10,6 +10,7 @@
 #include <filesystem>
 #include <fstream>
 
+#include "common/units.h"
 #include "processing/marg/marg_calibration.h"
 
 namespace msmcal {
@@ -83,8 +84,9 @@ TEST(MargCalibrationEndToEnd, ReachesNoiseFloorOnValidation) {
   const auto b_true = sim.truth.FieldInBoard(sim.truth.validation);
   // Noise floor of a direction: sqrt(2) sigma / |v| (two tangential components).
   const double acc_floor =
-      std::sqrt(2.0) * cfg.accelerometer.noise_std / cfg.gravity_g * 180 / M_PI;
-  const double mag_floor = std::sqrt(2.0) * cfg.magnetometer.noise_std / cfg.field_uT * 180 / M_PI;
+      common::RadToDeg(std::sqrt(2.0) * cfg.accelerometer.noise_std / cfg.gravity_g);
+  const double mag_floor =
+      common::RadToDeg(std::sqrt(2.0) * cfg.magnetometer.noise_std / cfg.field_uT);
   const auto acc_err = marg::CompareDirections(acc, g_true, /*remove_yaw=*/true);
   const auto mag_err = marg::CompareDirections(mag, b_true, /*remove_yaw=*/true);
   std::printf("accelerometer direction RMS %.3f deg (floor %.3f), yaw %.2f deg\n", acc_err.rms_deg,
@@ -130,7 +132,8 @@ TEST_P(MagOnlyOutliers, CalibratesTheHallVariantDespiteSpikes) {
   EXPECT_TRUE(res.calibration.magnetometer.has_value());
   const auto mag = Col(marg::ApplyCalibration(res.calibration, sim.validation), &marg::Mag);
   const auto b_true = sim.truth.FieldInBoard(sim.truth.validation);
-  const double mag_floor = std::sqrt(2.0) * cfg.magnetometer.noise_std / cfg.field_uT * 180 / M_PI;
+  const double mag_floor =
+      common::RadToDeg(std::sqrt(2.0) * cfg.magnetometer.noise_std / cfg.field_uT);
   EXPECT_LT(marg::CompareDirections(mag, b_true, true).rms_deg, 1.25 * mag_floor);
   EXPECT_LT(NormRelativeStd(mag), 0.01);
   EXPECT_THROW(marg::SolveAttitudeSeries(sim.validation), std::invalid_argument);

@@ -12,6 +12,7 @@
 #include <random>
 #include <thread>
 
+#include "common/units.h"
 #include "mocks/render/ray_map.h"
 #include "mocks/render/renderer.h"
 #include "processing/geometry/rigid3.h"
@@ -55,10 +56,10 @@ RenderOptions NoiseFree(PixelFormat format = PixelFormat::kMono8) {
 // Rz(in_plane) * R(axis, tilt): tilt 0 faces the camera with the printed side.
 SceneBoard PlaceBoard(const BoardSpec& spec, const Eigen::Vector3d& centre_in_cam, double tilt_deg,
                       const Eigen::Vector3d& tilt_axis, double in_plane_deg) {
-  const double d2r = std::numbers::pi / 180;
   const Eigen::Matrix3d r =
-      Eigen::AngleAxisd(tilt_deg * d2r, tilt_axis.normalized()).toRotationMatrix() *
-      Eigen::AngleAxisd(in_plane_deg * d2r, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+      Eigen::AngleAxisd(tilt_deg * common::kRadPerDeg, tilt_axis.normalized()).toRotationMatrix() *
+      Eigen::AngleAxisd(in_plane_deg * common::kRadPerDeg, Eigen::Vector3d::UnitZ())
+          .toRotationMatrix();
   const Eigen::Vector3d centre_in_board(0.5 * (spec.cols - 1) * spec.square_mm,
                                         0.5 * (spec.rows - 1) * spec.square_mm, 0);
   return SceneBoard{spec, Rigid3d(r, centre_in_cam - r * centre_in_board)};

@@ -12,6 +12,7 @@
 #include <numbers>
 #include <sstream>
 
+#include "common/units.h"
 #include "mocks/rig/hall_model.h"
 #include "mocks/rig/mirror_motion.h"
 #include "mocks/rig/sim_options.h"
@@ -28,7 +29,6 @@ std::string EnvOr(const char* name, const char* fallback) {
   return v && *v ? v : fallback;
 }
 constexpr double kPi = std::numbers::pi;
-constexpr double kDeg = kPi / 180.0;
 
 std::string Slurp(const fs::path& p) {
   std::ifstream in(p, std::ios::binary);
@@ -142,8 +142,10 @@ TEST(MirrorMotionTest, ResonanceClosedFormAndModes) {
   double amin = 1e9, amax = -1e9, bmin = 1e9, bmax = -1e9, tmin = 1e9, tmax = -1e9;
   for (int i = 0; i < 20000; ++i) {
     const auto p = m.PoseAt(i * 0.2 / 20000, DriveMode::kScan);
-    amin = std::min(amin, p.alpha_rad / kDeg), amax = std::max(amax, p.alpha_rad / kDeg);
-    bmin = std::min(bmin, p.beta_rad / kDeg), bmax = std::max(bmax, p.beta_rad / kDeg);
+    amin = std::min(amin, p.alpha_rad / common::kRadPerDeg),
+    amax = std::max(amax, p.alpha_rad / common::kRadPerDeg);
+    bmin = std::min(bmin, p.beta_rad / common::kRadPerDeg),
+    bmax = std::max(bmax, p.beta_rad / common::kRadPerDeg);
     tmin = std::min(tmin, p.trans_mm), tmax = std::max(tmax, p.trans_mm);
   }
   EXPECT_NEAR(amax - amin, 4.4, 0.5);
@@ -258,8 +260,8 @@ TEST_F(RigTest, MirrorFrameTruthFollowsConventions) {
   for (const auto& b : sim_->beams_in_world()) EXPECT_LT(b.v.dot(neutral.n), 0);
   for (const auto& row : t.mirror_planes) {
     const auto pose = geometry::PoseFromWorldPlane(t.world_from_mirror0, row.plane_in_world);
-    EXPECT_NEAR(pose.alpha_rad / kDeg, row.alpha_deg, 1e-9);
-    EXPECT_NEAR(pose.beta_rad / kDeg, row.beta_deg, 1e-9);
+    EXPECT_NEAR(pose.alpha_rad / common::kRadPerDeg, row.alpha_deg, 1e-9);
+    EXPECT_NEAR(pose.beta_rad / common::kRadPerDeg, row.beta_deg, 1e-9);
     EXPECT_NEAR(pose.trans_mm, row.trans_mm, 1e-9);
   }
   // Fast-only planes contain the fast axis direction (their normals are orthogonal to e_F).
@@ -400,13 +402,13 @@ Eigen::Vector3d IndependentHall(const SimOptions& o, const geometry::MirrorPose&
   const Eigen::Vector3d rot_vec =
       Eigen::Vector3d(h.sensor_rotation_deg[0], h.sensor_rotation_deg[1],
                       h.sensor_rotation_deg[2]) *
-      kDeg;
+      common::kRadPerDeg;
   const Eigen::Matrix3d sensor_from_0 =
       Eigen::AngleAxisd(rot_vec.norm(), rot_vec.normalized()).toRotationMatrix();
   Eigen::Vector3d b = Eigen::Vector3d::Zero();
   if (magnet) b = sensor_from_0 * b_tesla * 1e6;
   auto coil = [&](const AxisOptions& a, const std::array<double, 3>& c) -> Eigen::Vector3d {
-    const double phi = 2 * kPi * a.frequency_hz * t + a.phase_deg * kDeg;
+    const double phi = 2 * kPi * a.frequency_hz * t + a.phase_deg * common::kRadPerDeg;
     const double s = std::sin(phi) + h.coil_harmonic2_ratio * std::sin(2 * phi);
     const Eigen::Vector3d amplitude(c[0], c[1], c[2]);
     return amplitude * s;

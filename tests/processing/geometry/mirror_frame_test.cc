@@ -4,13 +4,13 @@
 
 #include <cmath>
 
+#include "common/units.h"
+
 namespace msmcal::geometry {
 namespace {
 
-constexpr double kDeg = M_PI / 180.0;
-
 TEST(MirrorPose, PlaneRoundTripAndDefinition) {
-  const MirrorPose pose{3.1 * kDeg, -8.4 * kDeg, 0.37};
+  const MirrorPose pose{3.1 * common::kRadPerDeg, -8.4 * common::kRadPerDeg, 0.37};
   const Plane p = PlaneFromPose(pose);
   EXPECT_NEAR(p.n.norm(), 1.0, 1e-15);
   // interchange-format.md: alpha = asin(-n_y), beta = atan2(n_x, n_z), trans = d.
@@ -44,7 +44,8 @@ TEST(MirrorHomeFrame, AxesAndSignRules) {
   EXPECT_NEAR(r.determinant(), 1, 1e-12);
   EXPECT_TRUE(world_from_0.translation.isApprox(centre));
   // |e_F . X_W| < 0.1: the sign follows Y_W.
-  const Rigid3d f2 = MirrorHomeFrame(Eigen::Vector3d::UnitZ(), Eigen::Vector3d(0.05, -1, 0), centre);
+  const Rigid3d f2 =
+      MirrorHomeFrame(Eigen::Vector3d::UnitZ(), Eigen::Vector3d(0.05, -1, 0), centre);
   EXPECT_GT(f2.RotationMatrix().col(0).y(), 0);
   // The neutral plane through the centre has pose zero.
   const MirrorPose neutral = PoseFromWorldPlane(world_from_0, Plane::FromPointNormal(centre, n0));
@@ -64,9 +65,11 @@ TEST(MirrorHomeFrame, CentreAndFastAxisFromPlanes) {
   const Eigen::Vector3d centre(1, -2, 3);
   std::vector<Plane> fast_only, all;
   for (double a = -0.1; a <= 0.1; a += 0.05) {
-    fast_only.push_back(Plane::FromPointNormal(centre, So3Exp(Eigen::Vector3d(a, 0, 0)) * Eigen::Vector3d::UnitZ()));
+    fast_only.push_back(Plane::FromPointNormal(
+        centre, So3Exp(Eigen::Vector3d(a, 0, 0)) * Eigen::Vector3d::UnitZ()));
     for (double b = -0.2; b <= 0.2; b += 0.1)
-      all.push_back(Plane::FromPointNormal(centre, So3Exp(Eigen::Vector3d(a, b, 0)) * Eigen::Vector3d::UnitZ()));
+      all.push_back(Plane::FromPointNormal(
+          centre, So3Exp(Eigen::Vector3d(a, b, 0)) * Eigen::Vector3d::UnitZ()));
   }
   EXPECT_LT((RotationCentreFromPlanes(all) - centre).norm(), 1e-9);
   EXPECT_NEAR(std::abs(FastAxisFromPlanes(fast_only).x()), 1.0, 1e-9);

@@ -9,6 +9,7 @@
 #include <random>
 #include <vector>
 
+#include "common/units.h"
 #include "processing/dataset/recording.h"
 #include "processing/hall/hall_model.h"
 
@@ -48,7 +49,7 @@ struct SyntheticHallRig {
   }
   // Field of the magnet (dipole) at the sensor for a pose.
   Eigen::Vector3d Magnet(const Eigen::Vector3d& pose) const {
-    const double a = pose[0] * M_PI / 180, b = pose[1] * M_PI / 180;
+    const double a = common::DegToRad(pose[0]), b = common::DegToRad(pose[1]);
     const Eigen::Matrix3d r = (Eigen::AngleAxisd(b, Eigen::Vector3d::UnitY()) *
                                Eigen::AngleAxisd(a, Eigen::Vector3d::UnitX()))
                                   .toRotationMatrix();

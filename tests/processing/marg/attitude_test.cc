@@ -4,6 +4,7 @@
 
 #include <random>
 
+#include "common/units.h"
 #include "processing/geometry/rigid3.h"
 
 namespace msmcal::marg {
@@ -17,7 +18,7 @@ Eigen::Quaterniond RandomRotation(std::mt19937_64& rng) {
 }
 
 TEST(AttitudeTest, RecoversKnownQuaternions) {
-  const AttitudeReference ref = AttitudeReference::FromElevation(-60 * M_PI / 180);
+  const AttitudeReference ref = AttitudeReference::FromElevation(common::DegToRad(-60));
   std::mt19937_64 rng(1);
   for (int k = 0; k < 50; ++k) {
     const Eigen::Quaterniond q = RandomRotation(rng);
@@ -41,11 +42,11 @@ TEST(AttitudeTest, CostIsTheSquaredResidualAndMinimal) {
   // Inconsistent pair: the measured dip differs from the reference by 3 deg.
   const Eigen::Vector3d a = q.conjugate() * ref.gravity;
   const Eigen::Vector3d m =
-      q.conjugate() * AttitudeReference::FromElevation(-1.0 + 3 * M_PI / 180).magnetic;
+      q.conjugate() * AttitudeReference::FromElevation(-1.0 + common::DegToRad(3)).magnetic;
   const AttitudeSolution sol = SolveAttitude(a, m, ref);
   ASSERT_TRUE(sol.valid);
   // Best split of a 3 deg disagreement between two unit vectors: 2 * (2 sin(0.75 deg))^2.
-  const double expected = 2 * std::pow(2 * std::sin(0.75 * M_PI / 180), 2);
+  const double expected = 2 * std::pow(2 * std::sin(common::DegToRad(0.75)), 2);
   EXPECT_NEAR(sol.cost, expected, 1e-9);
   // Any perturbation increases the cost.
   for (int i = 0; i < 3; ++i) {

@@ -5,6 +5,8 @@
 #include <Eigen/Geometry>
 #include <random>
 
+#include "common/units.h"
+
 namespace msmcal::marg {
 namespace {
 
@@ -138,7 +140,7 @@ TEST(EllipsoidFitTest, ReportsDegenerateSamples) {
   EXPECT_NE(fit.message.find("plane"), std::string::npos) << fit.message;
 
   // A 10 degree cap with noise: the ellipsoid is not determined.
-  fit = FitEllipsoid(Sample(t, 500, 0.3, 8, 10 * M_PI / 180));
+  fit = FitEllipsoid(Sample(t, 500, 0.3, 8, common::DegToRad(10)));
   EXPECT_EQ(fit.status, EllipsoidFitStatus::kDegenerate) << fit.message;
   EXPECT_NE(fit.message.find("condition"), std::string::npos) << fit.message;
 

@@ -5,6 +5,8 @@
 #include <Eigen/Geometry>
 #include <random>
 
+#include "common/units.h"
+
 namespace msmcal::marg {
 namespace {
 
@@ -16,7 +18,7 @@ std::vector<Eigen::Vector3d> Circle(const Eigen::Matrix3d& tilt, const Eigen::Ve
   std::normal_distribution<double> g(0, noise);
   std::vector<Eigen::Vector3d> out;
   for (int i = 0; i < n; ++i) {
-    const double psi = turn_deg * M_PI / 180 * i / n;
+    const double psi = common::DegToRad(turn_deg) * i / n;
     out.push_back(tilt * (Eigen::AngleAxisd(psi, Eigen::Vector3d::UnitZ()) * v0) +
                   Eigen::Vector3d(g(rng), g(rng), g(rng)));
   }
@@ -55,7 +57,7 @@ TEST(PlaneAlignmentTest, RecoversKnownTilt) {
   // Noisy: 0.4 % noise, 600 samples: normal within ~0.05 deg.
   const auto noisy = FitPlaneAlignment(Circle(tilt, v0, 400, 600, 0.004, 3));
   ASSERT_TRUE(noisy.ok()) << noisy.message;
-  EXPECT_LT(std::acos(std::min(1.0, noisy.normal.dot(n_true))) * 180 / M_PI, 0.1);
+  EXPECT_LT(common::RadToDeg(std::acos(std::min(1.0, noisy.normal.dot(n_true)))), 0.1);
 }
 
 TEST(PlaneAlignmentTest, ReportsMissingCircleAndPartialTurn) {

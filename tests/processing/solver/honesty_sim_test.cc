@@ -15,6 +15,7 @@
 #include <map>
 #include <random>
 
+#include "common/units.h"
 #include "mocks/rig/rig_simulator.h"
 #include "processing/geometry/mirror_frame.h"
 #include "processing/solver/home_frame.h"
@@ -24,8 +25,6 @@
 
 namespace msmcal::solver {
 namespace {
-
-constexpr double kRadToDeg = 180.0 / M_PI;
 
 struct Acc {
   double z2 = 0;
@@ -86,15 +85,17 @@ TEST(HonestySimTest, NormalisedErrorsHaveUnitRms) {
         const Eigen::Vector3d el = r0.transpose() * er;
         const Eigen::Matrix3d cl = r0.transpose() * out.mirror0_cov.topLeftCorner<3, 3>() * r0;
         std::printf("  frame rot err in {0} (%.4f %.4f %.4f) deg sigma (%.4f %.4f %.4f)\n",
-                    el.x() * kRadToDeg, el.y() * kRadToDeg, el.z() * kRadToDeg,
-                    std::sqrt(cl(0, 0)) * kRadToDeg, std::sqrt(cl(1, 1)) * kRadToDeg,
-                    std::sqrt(cl(2, 2)) * kRadToDeg);
+                    el.x() * common::kDegPerRad, el.y() * common::kDegPerRad,
+                    el.z() * common::kDegPerRad, std::sqrt(cl(0, 0)) * common::kDegPerRad,
+                    std::sqrt(cl(1, 1)) * common::kDegPerRad,
+                    std::sqrt(cl(2, 2)) * common::kDegPerRad);
       }
       std::printf(
           "  frame err rot (%.4f %.4f %.4f) deg sigma (%.4f %.4f %.4f); origin (%.3f %.3f "
           "%.3f) sigma (%.3f %.3f %.3f)\n",
-          er.x() * kRadToDeg, er.y() * kRadToDeg, er.z() * kRadToDeg, sd(0) * kRadToDeg,
-          sd(1) * kRadToDeg, sd(2) * kRadToDeg, et3.x(), et3.y(), et3.z(), sd(3), sd(4), sd(5));
+          er.x() * common::kDegPerRad, er.y() * common::kDegPerRad, er.z() * common::kDegPerRad,
+          sd(0) * common::kDegPerRad, sd(1) * common::kDegPerRad, sd(2) * common::kDegPerRad,
+          et3.x(), et3.y(), et3.z(), sd(3), sd(4), sd(5));
     }
     {
       // Mahalanobis errors of the shared parameters (c1/c2 from world, beams) against truth.
@@ -128,7 +129,8 @@ TEST(HonestySimTest, NormalisedErrorsHaveUnitRms) {
         e.head<2>() = u.transpose() * (t.v / t.v.dot(l.v));
         e.tail<2>() = u.transpose() * (q - p0);
         std::printf("  beam %d: angle err %.4f deg, chi2/4 %.2f\n", out.beams[b].beam,
-                    geometry::AngleBetween(l.v, t.v) * kRadToDeg, maha(e, m.OffsetBeam(b)) / 4);
+                    geometry::AngleBetween(l.v, t.v) * common::kDegPerRad,
+                    maha(e, m.OffsetBeam(b)) / 4);
       }
     }
     for (const auto& sp : out.support_planes) {
@@ -143,17 +145,19 @@ TEST(HonestySimTest, NormalisedErrorsHaveUnitRms) {
       const auto pose = geometry::PoseFromWorldPlane(truth_frame, tp);
       std::printf(
           "  %s j=%d alpha %.2f: err (%.4f %.4f deg, %.4f mm) sd (%.4f %.4f, %.4f) chi2/3 %.2f\n",
-          dataset::ToString(sp.kind), sp.j, pose.alpha_rad * kRadToDeg, e(0) * kRadToDeg,
-          e(1) * kRadToDeg, e(2), std::sqrt(sp.cov(0, 0)) * kRadToDeg,
-          std::sqrt(sp.cov(1, 1)) * kRadToDeg, std::sqrt(sp.cov(2, 2)),
+          dataset::ToString(sp.kind), sp.j, pose.alpha_rad * common::kDegPerRad,
+          e(0) * common::kDegPerRad, e(1) * common::kDegPerRad, e(2),
+          std::sqrt(sp.cov(0, 0)) * common::kDegPerRad,
+          std::sqrt(sp.cov(1, 1)) * common::kDegPerRad, std::sqrt(sp.cov(2, 2)),
           e.dot(sp.cov.ldlt().solve(e)) / 3);
     }
     Acc sa, sb, st, et;
     for (size_t k = 0; k < out.planes.size(); ++k) {
       const auto& row = out.planes[k];
       const auto tp = geometry::PoseFromWorldPlane(truth_frame, true_scan[k]);
-      const Eigen::Vector3d e(row.alpha_deg - tp.alpha_rad * kRadToDeg,
-                              row.beta_deg - tp.beta_rad * kRadToDeg, row.trans_mm - tp.trans_mm);
+      const Eigen::Vector3d e(row.alpha_deg - tp.alpha_rad * common::kDegPerRad,
+                              row.beta_deg - tp.beta_rad * common::kDegPerRad,
+                              row.trans_mm - tp.trans_mm);
       const Eigen::Vector3d s(row.sigma_alpha_deg, row.sigma_beta_deg, row.sigma_trans_mm);
       sa.Add(e(0) / s(0)), sb.Add(e(1) / s(1)), st.Add(e(2) / s(2));
       za.Add(e(0) / s(0)), zb.Add(e(1) / s(1)), zt.Add(e(2) / s(2));

@@ -5,13 +5,12 @@
 #include <Eigen/Dense>
 #include <cmath>
 
+#include "common/units.h"
 #include "processing/solver/initialise.h"
 #include "processing/solver/synthetic_scene.h"
 
 namespace msmcal::solver {
 namespace {
-
-constexpr double kRadToDeg = 180.0 / M_PI;
 
 TEST(InitialMirrorPlaneTest, ExactOnNoiselessGeometry) {
   SyntheticSceneOptions o;
@@ -58,8 +57,9 @@ TEST(SolveMleTest, RecoversTruthFromNoisyObservations) {
     // Estimate beams are constrained by the reflections too; the held-out beam only by its
     // sliding-plane dots.
     const double tol_deg = b < o.num_estimate ? 0.01 : 0.05;
-    EXPECT_LT(geometry::AngleBetween(r.estimate.beams[b].v, s.truth.beams[b].v) * kRadToDeg,
-              tol_deg)
+    EXPECT_LT(
+        geometry::AngleBetween(r.estimate.beams[b].v, s.truth.beams[b].v) * common::kDegPerRad,
+        tol_deg)
         << "beam " << b;
     EXPECT_LT(geometry::LineLineDistance(r.estimate.beams[b], s.truth.beams[b]), 0.05);
   }
@@ -69,7 +69,7 @@ TEST(SolveMleTest, RecoversTruthFromNoisyObservations) {
     sum2 += e * e;
     EXPECT_NEAR(r.estimate.planes[j].d, s.truth.planes[j].d, 0.3) << "plane " << j;
   }
-  EXPECT_LT(std::sqrt(sum2 / o.num_planes) * kRadToDeg, 0.05);
+  EXPECT_LT(std::sqrt(sum2 / o.num_planes) * common::kDegPerRad, 0.05);
   // Variance factors near 1: the simulated covariances are the true ones.
   EXPECT_NEAR(r.dot_variance_factor, 1.0, 0.3);
   EXPECT_NEAR(r.corner_variance_factor, 1.0, 0.3);

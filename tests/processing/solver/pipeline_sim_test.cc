@@ -5,6 +5,7 @@
 #include <functional>
 #include <map>
 
+#include "common/units.h"
 #include "mocks/rig/rig_simulator.h"
 #include "processing/geometry/mirror_frame.h"
 #include "processing/solver/home_frame.h"
@@ -13,8 +14,6 @@
 
 namespace msmcal::solver {
 namespace {
-
-constexpr double kRadToDeg = 180.0 / M_PI;
 
 struct SimRun {
   sim::SimOptions options;
@@ -79,7 +78,7 @@ TEST(PipelineSimTest, RecoversBeamsPlanesAndHonestSigmas) {
   ASSERT_EQ(r.out.beams.size(), r.sim->beams_in_world().size());
   for (const auto& b : r.out.beams) {
     const auto& truth = r.sim->beams_in_world()[b.beam - 1];
-    const double err_deg = geometry::AngleBetween(b.v, truth.v) * kRadToDeg;
+    const double err_deg = geometry::AngleBetween(b.v, truth.v) * common::kDegPerRad;
     std::printf("beam %d: direction error %.4f deg, distance %.4f mm\n", b.beam, err_deg,
                 truth.Distance(b.p));
     // Beams with role estimate are also constrained by the reflections; the held-out beam only
@@ -101,12 +100,12 @@ TEST(PipelineSimTest, RecoversBeamsPlanesAndHonestSigmas) {
   for (size_t k = 0; k < r.out.planes.size(); ++k) {
     const auto& row = r.out.planes[k];
     const geometry::Plane& truth = true_scan[k];
-    const double e = geometry::AngleBetween(row.plane_in_world.n, truth.n) * kRadToDeg;
+    const double e = geometry::AngleBetween(row.plane_in_world.n, truth.n) * common::kDegPerRad;
     sum2 += e * e;
     const auto tp = geometry::PoseFromWorldPlane(truth_frame, truth);
     trans2 += std::pow(row.trans_mm - tp.trans_mm, 2);
-    z2(0) += std::pow((row.alpha_deg - tp.alpha_rad * kRadToDeg) / row.sigma_alpha_deg, 2);
-    z2(1) += std::pow((row.beta_deg - tp.beta_rad * kRadToDeg) / row.sigma_beta_deg, 2);
+    z2(0) += std::pow((row.alpha_deg - tp.alpha_rad * common::kDegPerRad) / row.sigma_alpha_deg, 2);
+    z2(1) += std::pow((row.beta_deg - tp.beta_rad * common::kDegPerRad) / row.sigma_beta_deg, 2);
     z2(2) += std::pow((row.trans_mm - tp.trans_mm) / row.sigma_trans_mm, 2);
   }
   const double n = static_cast<double>(r.out.planes.size());
@@ -182,7 +181,7 @@ TEST(PipelineSimTest, LeavesAStrayStep1BlobOffEveryBeamLine) {
   ASSERT_EQ(r.out.beams.size(), r.sim->beams_in_world().size());
   for (const auto& b : r.out.beams) {
     const auto& truth = r.sim->beams_in_world()[b.beam - 1];
-    EXPECT_LT(geometry::AngleBetween(b.v, truth.v) * kRadToDeg, 0.03) << "beam " << b.beam;
+    EXPECT_LT(geometry::AngleBetween(b.v, truth.v) * common::kDegPerRad, 0.03) << "beam " << b.beam;
   }
   EXPECT_EQ(r.out.planes.size(), r.sim->triggers().size());
   EXPECT_LT(r.out.rms_validation_deg, 0.042);
@@ -199,7 +198,9 @@ TEST(PipelineSimTest, KeepsSaturatedSpotsOnLightSquares) {
   }
   EXPECT_EQ(r.out.planes.size(), r.sim->triggers().size());
   for (const auto& b : r.out.beams)
-    EXPECT_LT(geometry::AngleBetween(b.v, r.sim->beams_in_world()[b.beam - 1].v) * kRadToDeg, 0.02)
+    EXPECT_LT(
+        geometry::AngleBetween(b.v, r.sim->beams_in_world()[b.beam - 1].v) * common::kDegPerRad,
+        0.02)
         << "beam " << b.beam;
 }
 
@@ -215,7 +216,7 @@ TEST(PipelineSimTest, SolvesColourFrames) {
     std::printf("dropped %s: %s\n", d.file.c_str(), d.reason.c_str());
   for (const auto& b : r.out.beams) {
     const double err_deg =
-        geometry::AngleBetween(b.v, r.sim->beams_in_world()[b.beam - 1].v) * kRadToDeg;
+        geometry::AngleBetween(b.v, r.sim->beams_in_world()[b.beam - 1].v) * common::kDegPerRad;
     std::printf("beam %d: direction error %.4f deg\n", b.beam, err_deg);
     EXPECT_LT(err_deg, b.beam == 3 ? 0.01 : 0.005) << "beam " << b.beam;  // 0.0031, 0.0013-14
   }
@@ -266,7 +267,8 @@ double WorstNormalErrorDeg(const SimRun& r) {
   double worst = 0;
   for (const auto& p : r.out.planes) {
     const auto truth = r.sim->MirrorPlaneInWorld(p.t_s, sim::DriveMode::kScan);
-    worst = std::max(worst, geometry::AngleBetween(p.plane_in_world.n, truth.n) * kRadToDeg);
+    worst =
+        std::max(worst, geometry::AngleBetween(p.plane_in_world.n, truth.n) * common::kDegPerRad);
   }
   return worst;
 }
@@ -307,7 +309,7 @@ double HeldOutSigmaDeg(const SimRun& r, int held) {
   for (size_t b = 0; b < r.out.beams.size(); ++b)
     if (r.out.beams[b].beam == held) {
       const int off = r.out.mle.OffsetBeam(static_cast<int>(b));
-      return std::sqrt(r.out.mle.other_cov.block(off, off, 2, 2).trace() / 2) * kRadToDeg;
+      return std::sqrt(r.out.mle.other_cov.block(off, off, 2, 2).trace() / 2) * common::kDegPerRad;
     }
   return 0;
 }
@@ -378,13 +380,14 @@ TEST(PipelineSimTest, HeldOutBeamErrorBudget) {
   double est_deg = -1, sd_deg = 0;
   for (size_t b = 0; b < r.out.beams.size(); ++b)
     if (r.out.beams[b].beam == held) {
-      est_deg = geometry::AngleBetween(r.out.beams[b].v, truth.v) * kRadToDeg;
+      est_deg = geometry::AngleBetween(r.out.beams[b].v, truth.v) * common::kDegPerRad;
       const int off = r.out.mle.OffsetBeam(static_cast<int>(b));
-      sd_deg = std::sqrt(r.out.mle.other_cov.block(off, off, 2, 2).trace() / 2) * kRadToDeg;
+      sd_deg =
+          std::sqrt(r.out.mle.other_cov.block(off, off, 2, 2).trace() / 2) * common::kDegPerRad;
     }
   // FitLine orients its direction by the points' order; compare as lines.
   auto line_deg = [&](const Eigen::Vector3d& v) {
-    return std::acos(std::min(1.0, std::abs(v.dot(truth.v)))) * kRadToDeg;
+    return std::acos(std::min(1.0, std::abs(v.dot(truth.v)))) * common::kDegPerRad;
   };
   const double pose_deg = line_deg(pose_line.v);
   std::printf(

@@ -16,6 +16,7 @@
 #include <opencv2/imgproc.hpp>
 #include <random>
 
+#include "common/units.h"
 #include "mocks/rig/rig_simulator.h"
 #include "processing/solver/diagnostics.h"
 #include "processing/solver/pipeline.h"
@@ -23,8 +24,6 @@
 
 namespace msmcal::solver {
 namespace {
-
-constexpr double kRadToDeg = 180.0 / M_PI;
 
 // A smaller camera (same field of view) so that scenes render and solve fast.
 void ScaleCamera(sim::SimOptions* o, double f) {
@@ -116,13 +115,14 @@ Errors AgainstTruth(const SolveRun& r) {
   for (const auto& pl : r.out.planes) {
     const geometry::Plane truth =
         r.sim->MirrorPlaneInWorld(r.sim->triggers()[pl.j].t_s, sim::DriveMode::kScan);
-    const double a = geometry::AngleBetween(pl.plane_in_world.n, truth.n) * kRadToDeg;
+    const double a = geometry::AngleBetween(pl.plane_in_world.n, truth.n) * common::kDegPerRad;
     s2 += a * a;
   }
   e.normal_rms_deg = std::sqrt(s2 / std::max<size_t>(1, r.out.planes.size()));
   for (const auto& b : r.out.beams) {
     const auto& truth = r.sim->beams_in_world()[b.beam - 1];
-    e.beam_max_deg = std::max(e.beam_max_deg, geometry::AngleBetween(b.v, truth.v) * kRadToDeg);
+    e.beam_max_deg =
+        std::max(e.beam_max_deg, geometry::AngleBetween(b.v, truth.v) * common::kDegPerRad);
   }
   return e;
 }

@@ -6,6 +6,8 @@
 #include <cmath>
 #include <opencv2/imgproc.hpp>
 
+#include "common/units.h"
+
 namespace msmcal::vision {
 namespace {
 
@@ -38,7 +40,7 @@ cv::Mat RenderBoard(const Eigen::Matrix3d& h, BoardSize size, double square, cv:
 
 Eigen::Matrix3d BoardToImage(double angle_deg, double scale, Eigen::Vector2d centre, BoardSize size,
                              double square, double tilt) {
-  const double a = angle_deg * M_PI / 180.0;
+  const double a = common::DegToRad(angle_deg);
   Eigen::Matrix3d t = Eigen::Matrix3d::Identity();
   t(0, 2) = -0.5 * (size.cols - 1) * square;
   t(1, 2) = -0.5 * (size.rows - 1) * square;

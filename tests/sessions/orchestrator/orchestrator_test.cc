@@ -15,6 +15,7 @@
 #include <sstream>
 
 #include "acquisition/hall/hall_csv_writer.h"
+#include "common/units.h"
 #include "mocks/generator/mock_server.h"
 #include "mocks/mcu/mock_mcu.h"
 #include "mocks/rig/truth_io.h"
@@ -182,7 +183,7 @@ TEST(Orchestrator, RunsACompleteSessionThroughTheMocksAndTheSolverRecoversTruth)
   for (const auto& pl : out.planes) {
     const geometry::Plane truth =
         rig.sim().MirrorPlaneInWorld(rig.sim().triggers()[pl.j].t_s, sim::DriveMode::kScan);
-    const double e = geometry::AngleBetween(pl.plane_in_world.n, truth.n) * 180.0 / M_PI;
+    const double e = common::RadToDeg(geometry::AngleBetween(pl.plane_in_world.n, truth.n));
     s2 += e * e;
   }
   const double rms_deg = std::sqrt(s2 / out.planes.size());

@@ -13,6 +13,7 @@
 #include <filesystem>
 #include <opencv2/core.hpp>
 
+#include "common/units.h"
 #include "drivers/camera/open_camera.h"
 #include "drivers/generator/function_generator.h"
 #include "drivers/generator/rig_generators.h"
@@ -349,8 +350,8 @@ TEST_F(PhysicalTwinTest, TruthOfTheLastAppliedDriveLoads) {
   for (size_t j = 0; j < times.size(); ++j) {
     EXPECT_NEAR(truth.mirror_planes[j].t_s, times[j], 1e-6);
     const geometry::MirrorPose pose = ref_->motion().PoseAt(times[j], sim::DriveMode::kScan);
-    EXPECT_NEAR(truth.mirror_planes[j].alpha_deg, pose.alpha_rad * 180 / M_PI, 1e-3);
-    EXPECT_NEAR(truth.mirror_planes[j].beta_deg, pose.beta_rad * 180 / M_PI, 1e-3);
+    EXPECT_NEAR(truth.mirror_planes[j].alpha_deg, common::RadToDeg(pose.alpha_rad), 1e-3);
+    EXPECT_NEAR(truth.mirror_planes[j].beta_deg, common::RadToDeg(pose.beta_rad), 1e-3);
   }
   EXPECT_EQ(truth.beams.size(), 3u);
   EXPECT_TRUE(simulation::OpenSimTruth(dir));
