@@ -210,10 +210,9 @@ std::vector<ValidationDotRow> ReadValidationDotsCsv(const fs::path& file) {
 void WriteValidationDotsCsv(const fs::path& file, const std::vector<ValidationDotRow>& rows) {
   std::string out = std::string(kValidationDotsHeader) + "\n";
   for (const auto& r : rows)
-    AppendRow(&out, {r.beam, r.j},
-              {r.observed_px.x(), r.observed_px.y(), r.predicted_px.x(), r.predicted_px.y(),
-               r.cov_px2(0, 0), r.cov_px2(0, 1), r.cov_px2(1, 1), r.joint_whitened.x(),
-               r.joint_whitened.y()});
+    common::AppendCsvRow(&out, r.beam, r.j, r.observed_px.x(), r.observed_px.y(),
+                         r.predicted_px.x(), r.predicted_px.y(), r.cov_px2(0, 0), r.cov_px2(0, 1),
+                         r.cov_px2(1, 1), r.joint_whitened.x(), r.joint_whitened.y());
   common::WriteFileAtomically(file, out);
 }
 
@@ -239,8 +238,8 @@ std::vector<solver::WhitenedResidual> ReadResidualsCsv(const fs::path& file) {
 void WriteResidualsCsv(const fs::path& file, const std::vector<solver::WhitenedResidual>& rows) {
   std::string out = std::string(kResidualsHeader) + "\n";
   for (const auto& r : rows)
-    AppendRow(&out, {r.family, r.group},
-              {r.observed_px.x(), r.observed_px.y(), r.whitened.x(), r.whitened.y()});
+    common::AppendCsvRow(&out, r.family, r.group, r.observed_px.x(), r.observed_px.y(),
+                         r.whitened.x(), r.whitened.y());
   common::WriteFileAtomically(file, out);
 }
 
