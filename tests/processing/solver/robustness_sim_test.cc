@@ -317,10 +317,15 @@ TEST(RobustnessSimTest, IndependentLikeSceneSolves) {
       r.out.dropped.size());
   PrintDiagnosis(r);
   EXPECT_EQ(r.out.num_scan_planes, static_cast<int>(r.sim->triggers().size()));
-  // Measured 0.023 deg / 0.028 deg with one exposure per step 1 frame (the goal is 0.010 deg:
-  // see the notes); the bound guards against regressions.
-  EXPECT_LT(e.normal_rms_deg, 0.04);
-  EXPECT_LT(e.beam_max_deg, 0.05);
+  // Measured 0.025 deg / 0.029 deg with one exposure per step 1 frame (the goal is 0.010 deg).
+  // MSMCAL_TEST_DIAG=1 shows where it comes from: the dots are within 0.011 px (step 1) and
+  // 0.022 px (step 2) of truth, the C1 and C2 world poses within 0.005-0.007 deg; the planes
+  // share one common offset that follows the beams, whose points drift linearly over the
+  // sliding poses (up to 0.025 mm across the beam, 0.065 mm along it: the small sliding board's
+  // depth from ~40 corners of 16 px squares). The beams' own sigma is 0.019 deg: the error is
+  // honest noise of the step 1 board poses, not a bias.
+  EXPECT_LT(e.normal_rms_deg, 0.035);
+  EXPECT_LT(e.beam_max_deg, 0.04);
   EXPECT_LT(r.out.rms_normalised_validation, 2.0);
 }
 
@@ -338,13 +343,15 @@ TEST(RobustnessSimTest, SecondImageModelSolves) {
       r.out.num_scan_planes, e.normal_rms_deg, e.beam_max_deg, r.out.rms_normalised_validation,
       r.out.dropped.size());
   PrintDiagnosis(r);
-  // Measured: 7 of 11 planes, 0.52 deg, beams 0.24 deg. The box PSF over clipped spots makes
-  // their profile flat-topped without a saturated pixel, which the Gaussian fit does not model
-  // (the reflected dots' variance factor rises to ~50): a known limit (docs/solver.md). The
-  // bounds say it solves and stays in the right place, not that it is accurate.
-  EXPECT_GE(r.out.num_scan_planes, static_cast<int>(r.sim->triggers().size()) / 2);
-  EXPECT_LT(e.normal_rms_deg, 1.5);
-  EXPECT_LT(e.beam_max_deg, 0.6);
+  // Measured: all 11 planes, 0.42 deg, beams 0.20 deg (before the fit through the response:
+  // 0.47 deg; dots 0.60 px (step 2) and 0.43 px (step 1) off truth, now 0.24 and 0.27 px). The
+  // dots' large errors were perpendicular to square edges: under the gamma a spot adds less
+  // level on the light side (vision/dots.h, RefineDotOnBackground). What is left: the C1 world
+  // board's corners (variance factor ~10) and the sliding dots set the beams (sigma
+  // 0.16-0.36 deg), and every plane shares their offset.
+  EXPECT_EQ(r.out.num_scan_planes, static_cast<int>(r.sim->triggers().size()));
+  EXPECT_LT(e.normal_rms_deg, 0.6);
+  EXPECT_LT(e.beam_max_deg, 0.3);
 }
 
 // ------------------------------------------------------------------ spoiled frames
