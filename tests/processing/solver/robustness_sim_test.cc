@@ -135,11 +135,11 @@ void PrintDiagnosis(const SolveRun& r) {
   const Estimate& est = r.out.mle.estimate;
   const MleResult& m = r.out.mle;
   auto rot_err = [](const geometry::Rigid3d& a, const geometry::Rigid3d& b) {
-    return Eigen::AngleAxisd(a.rotation * b.rotation.inverse()).angle() * kRadToDeg;
+    return Eigen::AngleAxisd(a.rotation * b.rotation.inverse()).angle() * common::kDegPerRad;
   };
   auto sig = [&](int off) {
     if (m.other_cov.rows() < off + 3) return 0.0;
-    return std::sqrt(m.other_cov.block(off, off, 3, 3).trace()) * kRadToDeg;
+    return std::sqrt(m.other_cov.block(off, off, 3, 3).trace()) * common::kDegPerRad;
   };
   std::printf(
       "  c1_from_world: rot err %.4f deg (sigma %.4f), t err %.3f mm\n",
@@ -164,14 +164,14 @@ void PrintDiagnosis(const SolveRun& r) {
     double s = 0;
     if (m.other_cov.rows() >= off + 4) s = std::sqrt(m.other_cov.block(off, off, 2, 2).trace());
     std::printf("  beam %zu: dir err %.4f deg (chart sigma %.5f)\n", b + 1,
-                geometry::AngleBetween(est.beams[b].v, truth.v) * kRadToDeg, s * kRadToDeg);
+                geometry::AngleBetween(est.beams[b].v, truth.v) * common::kDegPerRad, s * common::kDegPerRad);
   }
   for (const auto& pl : r.out.planes) {
     const geometry::Plane truth =
         r.sim->MirrorPlaneInWorld(r.sim->triggers()[pl.j].t_s, sim::DriveMode::kScan);
     const Eigen::Vector3d dn = pl.plane_in_world.n - truth.n;
     std::printf("  plane %d: err %.4f deg, dn (%.2e %.2e %.2e)\n", pl.j,
-                geometry::AngleBetween(pl.plane_in_world.n, truth.n) * kRadToDeg, dn.x(), dn.y(),
+                geometry::AngleBetween(pl.plane_in_world.n, truth.n) * common::kDegPerRad, dn.x(), dn.y(),
                 dn.z());
   }
   // Dot centres against the truth's projections (nearest measured dot within 3 px).
