@@ -152,7 +152,7 @@ def main():
     rig = os.path.join(tmp, "rig.yaml")
     text = open(os.path.join(source, "config", "rig.yaml")).read()
     # Smaller than tests/app/twin_session_hook_test.py's (the page's loop costs a process per
-    # set-up): short Hall recordings (the background one 2 s, to see its live images), 3 sliding
+    # set-up): short Hall recordings (the background one 2 s, to see its live images), 4 sliding
     # plate poses without background or identification frames (it still solves), one exposure
     # per step-1 frame, fewer triggers and step-2 frames.
     for a, b in [("device: /dev/ttyACM0", "device: " + os.path.join(tmp, "tty")),
@@ -160,7 +160,7 @@ def main():
                  ("hall_actual_min_s: 15", "hall_actual_min_s: 1"),
                  ("  exposures: 3 ", "  exposures: 1 "),
                  ("spacing: 0.25", "spacing: 0.9"),
-                 ("  poses: 7\n", "  poses: 3\n"),
+                 ("  poses: 7\n", "  poses: 4\n"),
                  ("background_frames: true", "background_frames: false"),
                  ("identification_frames: true", "identification_frames: false"),
                  ("neutral_frames: 2", "neutral_frames: 1"),
