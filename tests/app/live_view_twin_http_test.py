@@ -24,10 +24,8 @@ usage: live_view_twin_http_test.py MSMCAL SOURCE_DIR
 """
 import json
 import os
-import re
 import shutil
 import signal
-import socket
 import subprocess
 import sys
 import tempfile
@@ -41,55 +39,7 @@ import urllib.request
 DEADLINE_S = 240
 
 
-def fail(msg):
-    print("FAIL: " + msg, flush=True)
-    sys.exit(1)
-
-
-def scpi(port, text):
-    with socket.create_connection(("127.0.0.1", port), timeout=5) as s:
-        s.sendall((text + "\n").encode())
-        reply = b""
-        while not reply.endswith(b"\n"):
-            chunk = s.recv(4096)
-            if not chunk:
-                break
-            reply += chunk
-        return reply.decode().strip()
-
-
-class Lines:
-    """A process's stdout + stderr lines, collected by a thread; wait_for blocks on them."""
-
-    def __init__(self, proc, tag):
-        self.proc, self.tag, self.lines, self.done = proc, tag, [], False
-        self.cv = threading.Condition()
-        threading.Thread(target=self._read, daemon=True).start()
-
-    def _read(self):
-        for line in self.proc.stdout:
-            print("%s| %s" % (self.tag, line.rstrip("\n")), flush=True)
-            with self.cv:
-                self.lines.append(line.rstrip("\n"))
-                self.cv.notify_all()
-        with self.cv:
-            self.done = True
-            self.cv.notify_all()
-
-    def wait_for(self, pattern, deadline_s):
-        rx = re.compile(pattern)
-        end = time.monotonic() + deadline_s
-        with self.cv:
-            while True:
-                for l in self.lines:
-                    m = rx.search(l)
-                    if m:
-                        return m
-                left = end - time.monotonic()
-                if self.done or left <= 0:
-                    return None
-                self.cv.wait(left)
-
+from cli_testlib import Lines, fail, scpi  # tests/app/cli_testlib.py
 
 class Page:
     """The page's side: the claim, the event stream (a thread), the requests."""

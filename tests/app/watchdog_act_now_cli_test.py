@@ -25,11 +25,9 @@ import ctypes
 import os
 import re
 import signal
-import socket
 import subprocess
 import sys
 import tempfile
-import threading
 import time
 
 PORTS = (15025, 15026)
@@ -52,61 +50,7 @@ LOUD = re.compile(r"safe state NOT CONFIRMED by msmcal itself; the watchdog \(pi
                   r"status 10\), asked to act on new connections, confirmed every output off")
 
 
-def fail(msg):
-    print("FAIL: " + msg, flush=True)
-    sys.exit(1)
-
-
-def scpi(port, text):
-    with socket.create_connection(("127.0.0.1", port), timeout=5) as s:
-        s.sendall((text + "\n").encode())
-        reply = b""
-        while not reply.endswith(b"\n"):
-            chunk = s.recv(4096)
-            if not chunk:
-                break
-            reply += chunk
-        return reply.decode().strip()
-
-
-class Lines:
-    """A process's stdout + stderr lines, collected by a thread; wait_for blocks on them."""
-
-    def __init__(self, proc, tag):
-        self.proc, self.tag, self.lines, self.done = proc, tag, [], False
-        self.cv = threading.Condition()
-        threading.Thread(target=self._read, daemon=True).start()
-
-    def _read(self):
-        for line in self.proc.stdout:
-            print("%s| %s" % (self.tag, line.rstrip("\n")), flush=True)
-            with self.cv:
-                self.lines.append(line.rstrip("\n"))
-                self.cv.notify_all()
-        with self.cv:
-            self.done = True
-            self.cv.notify_all()
-
-    def wait_for(self, pattern, deadline_s):
-        rx = re.compile(pattern)
-        end = time.monotonic() + deadline_s
-        with self.cv:
-            while True:
-                if any(rx.search(l) for l in self.lines):
-                    return True
-                left = end - time.monotonic()
-                if self.done or left <= 0:
-                    return False
-                self.cv.wait(left)
-
-    def wait_done(self, deadline_s):
-        with self.cv:
-            self.cv.wait_for(lambda: self.done, deadline_s)
-
-    def text(self):
-        with self.cv:
-            return "\n".join(self.lines)
-
+from cli_testlib import Lines, fail, scpi  # tests/app/cli_testlib.py
 
 def orphans():
     """Children of this test other than the mock (a watchdog msmcal did not reap)."""
