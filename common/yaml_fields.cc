@@ -93,9 +93,14 @@ void YamlFields::CheckKeys(const YAML::Node& map, const std::string& path,
                            const std::set<std::string>& allowed) const {
   if (!map.IsMap()) Fail(map, path, "must be a mapping");
   for (const auto& kv : map) {
-    const std::string k = kv.first.as<std::string>();
+    const std::string k = KeyAt(kv.first, path);
     if (!allowed.count(k)) Fail(kv.first, path + "." + k, "unknown key");
   }
+}
+
+std::string YamlFields::KeyAt(const YAML::Node& key, const std::string& path) const {
+  if (!key.IsScalar()) Fail(key, path.empty() ? "(root)" : path, "a key must be a plain name");
+  return key.Scalar();
 }
 
 YAML::Node YamlFields::Map(const YAML::Node& parent, const std::string& key,

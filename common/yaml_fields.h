@@ -93,6 +93,9 @@ class YamlFields {
                  const std::set<std::string>& allowed, bool optional = false) const;
   void CheckKeys(const YAML::Node& map, const std::string& path,
                  const std::set<std::string>& allowed) const;
+  // The text of a mapping key (`kv.first`); a key that is a sequence, a mapping or null
+  // ("[a, b]: 1", "{a: 1}: 2", "? : 1") fails "<path>: a key must be a plain name".
+  std::string KeyAt(const YAML::Node& key, const std::string& path) const;
 
   // Typed scalars at a node. Messages: "must be a number, got '<text>'", "<path> = <text>: must
   // be a finite number", "<path> = <v>: must be in [lo, hi]", "must be an integer, got '<text>'",

@@ -156,7 +156,8 @@ void Walk(const std::string& path, const YAML::Node& node, const std::string& pr
           const std::vector<Knob>& knobs, std::set<std::string>* seen) {
   if (!node.IsMap()) Fail(path, node, prefix.empty() ? "(top level)" : prefix, "expected a map");
   for (const auto& kv : node) {
-    const std::string key = prefix + kv.first.as<std::string>();
+    const std::string key =
+        prefix + common::YamlFields(path).KeyAt(kv.first, prefix.empty() ? "(top level)" : prefix);
     if (kv.second.IsMap()) {
       Walk(path, kv.second, key + ".", knobs, seen);
       continue;

@@ -30,6 +30,10 @@ class Reader {
     fields_.FailText(node, field + what);
   }
 
+  std::string KeyAt(const YAML::Node& key, const std::string& field) const {
+    return fields_.KeyAt(key, field);
+  }
+
   // The mapping `parent[key]`; unknown keys refused. Missing: a null node when `optional`.
   YAML::Node Map(const YAML::Node& parent, const std::string& key, const std::string& field,
                  const std::set<std::string>& allowed, bool optional = false) const {
@@ -193,7 +197,7 @@ RigFile ParseRigFile(const std::string& yaml_text, const std::string& origin) {
   const std::set<std::string> sections = {"generators", "camera",        "hall_mcu", "boards",
                                           "beams",      "sliding_plate", "step1",    "step2"};
   for (const auto& kv : root) {
-    const std::string k = kv.first.as<std::string>();
+    const std::string k = r.KeyAt(kv.first, "(root)");
     if (!sections.count(k)) {
       r.Fail(kv.first, k,
              ": unknown section (a rig file has generators, camera, hall_mcu, boards, beams, "

@@ -101,7 +101,8 @@ void Overlay(const std::string& source, const std::string& noun, const std::stri
   if (!over.IsMap())
     Fail(source, over, (prefix.empty() ? std::string("base") : prefix) + ": expected a mapping");
   for (const auto& kv : over) {
-    const std::string key = kv.first.as<std::string>();
+    const std::string key =
+        common::YamlFields(source).KeyAt(kv.first, prefix.empty() ? "base" : "base." + prefix);
     const std::string full = prefix.empty() ? key : prefix + "." + key;
     const YAML::Node s = schema[key];
     if (!s) Fail(source, kv.first, "base." + full + ": unknown " + noun);
@@ -188,7 +189,7 @@ SweepPlan ParseSweepPlan(const std::string& yaml_text, const std::string& source
   static const std::set<std::string> kKeys = {"base_config", "base",  "axes",
                                               kRepeatsKey,   "order", "note"};
   for (const auto& kv : root) {
-    const std::string key = kv.first.as<std::string>();
+    const std::string key = common::YamlFields(source_name).KeyAt(kv.first, "(top level)");
     if (!kKeys.count(key))
       Fail(source_name, kv.first,
            "unknown key '" + key + "' (allowed: base_config, base, axes, repeats, order, note)");
@@ -227,7 +228,7 @@ SweepPlan ParseSweepPlan(const std::string& yaml_text, const std::string& source
     if (!ax.IsMap()) Fail(source_name, ax, "axes: expected a mapping from option paths to lists");
     for (const auto& kv : ax) {
       SweepAxis axis;
-      axis.path = kv.first.as<std::string>();
+      axis.path = common::YamlFields(source_name).KeyAt(kv.first, "axes");
       axis.line = common::YamlLine(kv.first);
       const YAML::Node s = Lookup(schema, SplitPath(axis.path));
       if (!s.IsDefined() || s.IsMap())

@@ -5,6 +5,8 @@
 
 #include <cmath>
 #include <stdexcept>
+#include <string>
+#include <vector>
 
 namespace msmcal::common {
 namespace {
@@ -126,6 +128,24 @@ TEST(YamlFieldsTest, SchemaPredicatesAndNumbersInMessages) {
   EXPECT_FALSE(IsYamlBool(n["a"]));
   EXPECT_EQ(FieldNumber(200000), "200000");
   EXPECT_EQ(FieldNumber(0.1), "0.1");
+}
+
+// A mapping key that is a sequence, a mapping or null is refused with its line (the rig file
+// fuzzer found "[a, b]: 1" escaping as yaml-cpp's "bad conversion").
+TEST(YamlFieldsTest, KeysThatAreNotPlainNamesAreRefusedWithTheirLine) {
+  const YamlFields r("rig.yaml");
+  const YAML::Node root = r.Load("camera:\n  fx: 1\n  [a, b]: 2\n  {c: 1}: 3\n");
+  std::vector<std::string> messages;
+  for (const auto& kv : root["camera"]) {
+    messages.push_back(Message([&] { (void)r.KeyAt(kv.first, "camera"); }));
+  }
+  ASSERT_EQ(messages.size(), 3u);
+  EXPECT_EQ(messages[0], "");
+  EXPECT_EQ(messages[1], "rig.yaml:3: camera: a key must be a plain name");
+  EXPECT_EQ(messages[2], "rig.yaml:4: camera: a key must be a plain name");
+  EXPECT_EQ(Message([&] { r.CheckKeys(root["camera"], "camera", {"fx"}); }),
+            "rig.yaml:3: camera: a key must be a plain name");
+  EXPECT_EQ(r.KeyAt(root.begin()->first, "(root)"), "camera");
 }
 
 }  // namespace

@@ -5,6 +5,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <regex>
 #include <sstream>
 
 namespace msmcal::rig {
@@ -165,6 +166,33 @@ TEST(RigFileTest, ADriveOutsideTheChannelWindowIsRefusedAtLoad) {
   // The sections' own loaders keep their messages (file, line, field).
   EXPECT_NE(ErrorOf(Replace(t, "rate_hz: 1000", "rate_hz: 9000")).find("hall_mcu.rate_hz"),
             std::string::npos);
+}
+
+// Every key of the example, replaced by a key that is not a name ("[x, y]: ..."), is refused
+// with a message naming the file and a line, never yaml-cpp's bare "bad conversion" (found by
+// the rig_yaml fuzzer).
+TEST(RigFileTest, AKeyThatIsNotANameIsRefusedWithFileAndLineAnywhere) {
+  const std::string t = ExampleText();
+  const std::regex key_line(R"(^(\s*)([A-Za-z_][A-Za-z_0-9]*):)");
+  std::istringstream lines(t);
+  std::string line;
+  int n = 0;
+  int tried = 0;
+  size_t offset = 0;
+  while (std::getline(lines, line)) {
+    ++n;
+    std::smatch m;
+    if (std::regex_search(line, m, key_line)) {
+      std::string changed = t;
+      changed.replace(offset + m[1].length(), m[2].length(), "[x, y]");
+      const std::string e = ErrorOf(changed);
+      EXPECT_EQ(e.rfind("rig.yaml:", 0), 0u) << "line " << n << ": " << e;
+      EXPECT_EQ(e.find("bad conversion"), std::string::npos) << "line " << n << ": " << e;
+      ++tried;
+    }
+    offset += line.size() + 1;
+  }
+  EXPECT_GT(tried, 40);
 }
 
 }  // namespace
