@@ -277,6 +277,10 @@ orchestrator::SessionResult RunLabAcquisition(const fs::path& out,
   const int64_t settle_ns =
       std::max<int64_t>(300'000'000, std::llround((oo.camera_exposure_us.value_or(0) * 1e3) +
                                                   1e9 / oo.camera_frame_rate_hz + 100e6));
+  // And their exposure began after it on the camera's clock (a frame delivered late by a loaded
+  // host fails however late it arrives): the exposure, or the frame period it cannot exceed.
+  const int64_t exposure_ns = std::llround(oo.camera_exposure_us ? *oo.camera_exposure_us * 1e3
+                                                                 : 1e9 / oo.camera_frame_rate_hz);
   if (!options.reference.empty()) {  // a rig sweep's point: starts at the rig check, step 2 next
     if (!options.resume)
       orchestrator::SeedSessionFromReference(oo, options.plan, options.reference);
@@ -285,6 +289,7 @@ orchestrator::SessionResult RunLabAcquisition(const fs::path& out,
     fo.mcu_device = oo.mcu.device;
     fo.host_clock_ns = HostClockFor(oo.camera);
     fo.settle_ns = settle_ns;
+    fo.exposure_ns = exposure_ns;
     orchestrator::FixedRigOperator op(options.plan, fo);
     orchestrator::SessionResult result =
         orchestrator::RunSession(oo, options.plan, op, options.progress);
@@ -294,6 +299,7 @@ orchestrator::SessionResult RunLabAcquisition(const fs::path& out,
   if (!hook.empty()) {
     orchestrator::HookOperatorOptions ho;
     ho.settle_ns = settle_ns;
+    ho.exposure_ns = exposure_ns;
     ho.command = hook;
     ho.timeout_ms = options.hook_timeout_ms;
     ho.poses = options.poses;
@@ -308,6 +314,7 @@ orchestrator::SessionResult RunLabAcquisition(const fs::path& out,
   }
   orchestrator::ConsoleOperatorOptions co;
   co.settle_ns = settle_ns;
+  co.exposure_ns = exposure_ns;
   co.input_fd = options.input_fd;
   co.output_fd = options.output_fd;
   co.mcu_device = oo.mcu.device;
@@ -320,6 +327,7 @@ orchestrator::SessionResult RunLabAcquisition(const fs::path& out,
     wo.mcu_device = co.mcu_device;
     wo.host_clock_ns = co.host_clock_ns;
     wo.settle_ns = co.settle_ns;
+    wo.exposure_ns = exposure_ns;
     wo.poses = co.poses;
     const auto web_operator = options.web->MakeOperator(wo, nullptr);
     return orchestrator::RunSession(oo, options.plan, *web_operator, options.progress);

@@ -41,6 +41,7 @@ struct WebOperatorOptions {
   std::string mcu_device;
   std::function<int64_t()> host_clock_ns;
   int64_t settle_ns = 300'000'000;
+  int64_t exposure_ns = 0;  // as SetupWalkOptions::exposure_ns (0: host rule alone)
   std::string Validate(bool has_inner) const;  // empty when valid; names field and constraint
 };
 

@@ -68,9 +68,13 @@ struct ConsoleOperatorOptions {
   // A frame shows the confirmed setup when it reached the host at least this long after the
   // confirmation (or, for a frame of an unchanged set-up, after its Prepare*Frame call): the host
   // arrival time bounds the end of the exposure, so this must cover one exposure + transfer
-  // (frames in flight at the confirmation are discarded). Device timestamps are not used because
-  // the camera's clock is not tied to the host's.
+  // (frames in flight at the confirmation are discarded).
   int64_t settle_ns = 300'000'000;
+  // The longest exposure a frame can have (ns). Set: a frame also counts only when its exposure
+  // began after the confirmation on the camera's own clock (its device timestamp, mapped onto the
+  // host clock by the fastest-delivered frame: camera::DeviceClockMap), which a frame delivered
+  // late by a loaded host fails however late it arrives. 0: the host rule alone.
+  int64_t exposure_ns = 0;
 
   // Empty when valid for the given mode (with or without an inner operator); otherwise names the
   // field, its value and the constraint.

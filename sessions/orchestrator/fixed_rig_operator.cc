@@ -16,7 +16,7 @@ std::string YesNo(bool b) { return b ? "true" : "false"; }
 
 SetupWalkOptions WalkOf(const FixedRigOptions& o) {
   if (std::string e = o.Validate(); !e.empty()) throw std::invalid_argument(e);
-  return {/*poses=*/{}, o.mcu_device, o.host_clock_ns, o.settle_ns};
+  return {/*poses=*/{}, o.mcu_device, o.host_clock_ns, o.settle_ns, o.exposure_ns};
 }
 
 }  // namespace

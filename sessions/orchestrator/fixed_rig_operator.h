@@ -32,6 +32,7 @@ struct FixedRigOptions {
   std::string mcu_device;                  // required
   std::function<int64_t()> host_clock_ns;  // the camera driver's host clock; required
   int64_t settle_ns = 300'000'000;         // >= 0
+  int64_t exposure_ns = 0;  // as SetupWalkOptions::exposure_ns (0: host rule alone)
   std::string Validate() const;            // empty when valid; names field, value, constraint
 };
 

@@ -137,7 +137,7 @@ namespace {
 
 SetupWalkOptions WalkOf(const HookOperatorOptions& o, bool has_inner) {
   if (std::string e = o.Validate(has_inner); !e.empty()) throw std::invalid_argument(e);
-  return {o.poses, o.mcu_device, o.host_clock_ns, o.settle_ns};
+  return {o.poses, o.mcu_device, o.host_clock_ns, o.settle_ns, o.exposure_ns};
 }
 
 }  // namespace

@@ -47,6 +47,7 @@ struct HookOperatorOptions {
   std::string mcu_device;
   std::function<int64_t()> host_clock_ns;
   int64_t settle_ns = 300'000'000;
+  int64_t exposure_ns = 0;  // as SetupWalkOptions::exposure_ns (0: host rule alone)
   // Optional: one line per hook call ("hook: set-up 3/24 (step1): exit 0").
   std::function<void(const std::string&)> log;
   std::string Validate(bool has_inner) const;  // empty when valid; names field, value, limit

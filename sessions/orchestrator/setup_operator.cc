@@ -1,5 +1,6 @@
 #include "sessions/orchestrator/setup_operator.h"
 
+#include <optional>
 #include <utility>
 
 namespace msmcal::orchestrator {
@@ -45,7 +46,11 @@ void SetupOperator::PrepareStep2Frame(size_t index) {
 
 bool SetupOperator::FrameShowsCurrentSetup(const camera::FrameInfo& info) const {
   if (inner_) return inner_->FrameShowsCurrentSetup(info);
-  return info.host_timestamp_ns - confirmed_ns_ >= walk_.settle_ns;
+  device_clock_.Observe(info);
+  if (info.host_timestamp_ns - confirmed_ns_ < walk_.settle_ns) return false;
+  if (walk_.exposure_ns <= 0 || info.device_timestamp_ns == 0) return true;
+  const std::optional<int64_t> mark = device_clock_.HostNs(info.device_timestamp_ns);
+  return !mark || *mark - walk_.exposure_ns >= confirmed_ns_ + walk_.device_margin_ns;
 }
 
 std::string SetupOperator::PrepareHallRecording(HallRun run) {

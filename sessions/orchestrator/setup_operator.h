@@ -4,7 +4,10 @@
 // set-up first, or after step 1), one presentation per physical set-up (a frame at the set-up
 // confirmed last is not presented again; a Hall set-up always is: its recording starts on the
 // answer), then the inner operator (the demo's simulated world) or, in the lab, the freshness
-// rule: a frame shows the set-up when it reached the host settle_ns after the confirmation.
+// rule: a frame shows the set-up when it reached the host settle_ns after the confirmation and,
+// when the camera stamps its frames, its exposure began after the confirmation on the camera's
+// own clock (mapped onto the host's by camera::DeviceClockMap): a frame delivered late (a loaded
+// host, a frame queued in the driver) was exposed earlier than its arrival says.
 // Subclasses say only how a set-up is presented (Present).
 
 #include <cstdint>
@@ -12,6 +15,7 @@
 #include <string>
 #include <vector>
 
+#include "drivers/camera/device_clock.h"
 #include "processing/dataset/recording.h"
 #include "sessions/orchestrator/rig_operator.h"
 #include "sessions/setup/setup.h"
@@ -25,6 +29,12 @@ struct SetupWalkOptions {
   std::string mcu_device;
   std::function<int64_t()> host_clock_ns;
   int64_t settle_ns = 300'000'000;
+  // The exposure's length, at most (ns; the camera's exposure, or its frame period when the
+  // camera chooses). A frame counts only when (its device timestamp on the host clock) -
+  // exposure_ns >= confirmation + device_margin_ns; 0: that check is off (host rule alone).
+  int64_t exposure_ns = 0;
+  // Covers the delivery delay of the fastest frame, by which mapped device times run late.
+  int64_t device_margin_ns = 100'000'000;
 };
 
 class SetupOperator : public RigOperator {
@@ -59,6 +69,8 @@ class SetupOperator : public RigOperator {
   int current_ = -1;  // the set-up confirmed last (index into setups_.setups)
   int confirmations_ = 0;
   int64_t confirmed_ns_ = 0;
+  // Fed every frame the orchestrator asks about (stale ones included: they are the fast ones).
+  mutable camera::DeviceClockMap device_clock_;
 };
 
 }  // namespace msmcal::orchestrator

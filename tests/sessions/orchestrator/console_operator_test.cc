@@ -253,6 +253,42 @@ TEST(ConsoleOperator, LabModeAcceptsFramesArrivingAfterConfirmationPlusSettle) {
   EXPECT_FALSE(op.FrameShowsCurrentSetup(info));
 }
 
+// A frame delivered late (a loaded host: it arrives long after the settle) but exposed before
+// the confirmation on the camera's clock is refused; its device clock is mapped onto the host's
+// by the fastest-delivered frame (device = host - 3 s - delivery delay).
+TEST(ConsoleOperator, LabModeRefusesALateDeliveredFrameExposedBeforeTheConfirmation) {
+  const dataset::Recording plan = SmallPlan();
+  Terminal term;
+  ConsoleOperatorOptions o = term.Options();
+  o.mcu_device = "/dev/ttyACM0";
+  int64_t now_ns = 5'000'000'000;
+  o.host_clock_ns = [&] { return now_ns; };
+  o.settle_ns = 400'000'000;
+  o.exposure_ns = 200'000'000;
+  ConsoleOperator op(plan, o, nullptr);
+  auto frame = [](int64_t exposure_end_host_ns, int64_t delay_ns) {
+    camera::FrameInfo f;
+    f.device_timestamp_ns = exposure_end_host_ns - 3'000'000'000;
+    f.host_timestamp_ns = exposure_end_host_ns + delay_ns;
+    return f;
+  };
+  // Frames before the set-up (nothing confirmed yet), one delivered within 5 ms (the offset).
+  (void)op.FrameShowsCurrentSetup(frame(4'000'000'000, 5'000'000));
+  (void)op.FrameShowsCurrentSetup(frame(4'250'000'000, 60'000'000));
+  term.Type("\n");
+  now_ns = 9'000'000'000;
+  op.PrepareStep1Frame(0);
+  // Exposed 8.95..9.15 s (began before the confirmation at 9 s), delivered 600 ms late: the host
+  // rule alone (arrival >= 9.4 s) would take it.
+  EXPECT_FALSE(op.FrameShowsCurrentSetup(frame(9'150'000'000, 600'000'000)));
+  // Exposed 9.15..9.35 s, delivered as late: counts (began 150 ms after; margin 100 ms + 5 ms).
+  EXPECT_TRUE(op.FrameShowsCurrentSetup(frame(9'350'000'000, 600'000'000)));
+  // Without a device timestamp the host rule alone decides.
+  camera::FrameInfo no_device;
+  no_device.host_timestamp_ns = 9'400'000'000;
+  EXPECT_TRUE(op.FrameShowsCurrentSetup(no_device));
+}
+
 TEST(ConsoleOperator, IndicesOutsideThePlanAreRefused) {
   const dataset::Recording plan = SmallPlan();
   FakeRig rig;
