@@ -13,6 +13,7 @@
 
 #include "app/command_registry.h"
 #include "common/progress_line.h"
+#include "common/units.h"
 #include "mocks/rig/rig_simulator.h"
 #include "mocks/rig/truth_io.h"
 #include "processing/hall/calibration.h"
@@ -50,8 +51,8 @@ void PrintExactFieldFits(const sim::RigSimulator& simulator,
   std::vector<hall::PoseSample> poses;
   for (const auto& p : planes) {
     const auto pose = simulator.motion().PoseAt(p.t_s, sim::DriveMode::kScan);
-    poses.push_back({p.t_s, Eigen::Vector3d(pose.alpha_rad * 180 / M_PI, pose.beta_rad * 180 / M_PI,
-                                            pose.trans_mm)});
+    poses.push_back({p.t_s, Eigen::Vector3d(common::RadToDeg(pose.alpha_rad),
+                                            common::RadToDeg(pose.beta_rad), pose.trans_mm)});
   }
   hall::HallFitOptions o;
   o.fast_frequency_hz = simulator.options().mirror.fast.frequency_hz;

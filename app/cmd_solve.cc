@@ -17,6 +17,7 @@
 #include "app/command_registry.h"
 #include "app/step_output.h"
 #include "common/progress_line.h"
+#include "common/units.h"
 #include "mocks/rig/rig_simulator.h"
 #include "processing/solver/diagnostics.h"
 #include "processing/solver/home_frame.h"
@@ -320,7 +321,7 @@ void RunTable1(const Table1Args& args) {
       for (const auto& pl : out.planes) {
         const geometry::Plane truth =
             simulator.MirrorPlaneInWorld(simulator.triggers()[pl.j].t_s, sim::DriveMode::kScan);
-        const double e = geometry::AngleBetween(pl.plane_in_world.n, truth.n) * 180.0 / M_PI;
+        const double e = common::RadToDeg(geometry::AngleBetween(pl.plane_in_world.n, truth.n));
         s2 += e * e;
       }
       row.normal_rms_deg = std::sqrt(s2 / std::max<double>(1, out.planes.size()));

@@ -6,6 +6,7 @@
 #include <limits>
 #include <sstream>
 
+#include "common/units.h"
 #include "mocks/generator/scpi_parser.h"
 
 namespace msmcal::sim {
@@ -236,13 +237,13 @@ struct Mock33520B::Context {
     if (MatchMnemonic("DEFault", t)) return 0.0;
     double deg = 0;
     if (auto v = ParseNumericWithUnit(t, "")) {
-      deg = unit.angle_unit_ == "RAD"   ? *v * 180.0 / kPi
+      deg = unit.angle_unit_ == "RAD"   ? common::RadToDeg(*v)
             : unit.angle_unit_ == "SEC" ? *v * ch.frequency_hz * 360.0
                                         : *v;
     } else if (auto d = ParseNumericWithUnit(t, "DEG")) {
       deg = *d;
     } else if (auto r = ParseNumericWithUnit(t, "RAD")) {
-      deg = *r * 180.0 / kPi;
+      deg = common::RadToDeg(*r);
     } else if (auto sec = ParseNumericWithUnit(t, "S"); sec && unit.angle_unit_ == "SEC") {
       deg = *sec * ch.frequency_hz * 360.0;
     } else {
@@ -252,7 +253,7 @@ struct Mock33520B::Context {
     return Clip(deg, -360.0, 360.0);
   }
   std::string AngleReply(double deg, const ChannelSignal& ch) const {
-    if (unit.angle_unit_ == "RAD") return FormatReplyNumber(deg * kPi / 180.0);
+    if (unit.angle_unit_ == "RAD") return FormatReplyNumber(common::DegToRad(deg));
     if (unit.angle_unit_ == "SEC") return FormatReplyNumber(deg / 360.0 / ch.frequency_hz);
     return FormatReplyNumber(deg);
   }

@@ -3,6 +3,8 @@
 #include <cmath>
 #include <numbers>
 
+#include "common/units.h"
+
 namespace msmcal::sim {
 
 const char* ToString(DriveMode mode) {
@@ -34,10 +36,11 @@ MirrorMotion::MirrorMotion(const MirrorOptions& options)
 
 double MirrorMotion::AxisAngleDeg(const AxisOptions& axis, const AxisResponse& r, double t_s) {
   constexpr double kPi = std::numbers::pi;
-  const double phi = 2 * kPi * axis.frequency_hz * t_s + axis.phase_deg * kPi / 180 - r.lag_rad;
+  const double phi =
+      2 * kPi * axis.frequency_hz * t_s + common::DegToRad(axis.phase_deg) - r.lag_rad;
   return r.amplitude_deg *
          (std::sin(phi) +
-          axis.harmonic2_ratio * std::sin(2 * phi + axis.harmonic2_phase_deg * kPi / 180));
+          axis.harmonic2_ratio * std::sin(2 * phi + common::DegToRad(axis.harmonic2_phase_deg)));
 }
 
 double MirrorMotion::AlphaDeg(double t_s, DriveMode mode) const {

@@ -7,6 +7,7 @@
 #include <stdexcept>
 
 #include "common/number_format.h"
+#include "common/units.h"
 
 namespace msmcal::signal {
 namespace {
@@ -14,7 +15,7 @@ namespace {
 constexpr double kPi = 3.14159265358979323846;
 
 double Phase(const SineDrive& d, double t_s) {
-  return 2.0 * kPi * d.frequency_hz * t_s + d.phase_deg * kPi / 180.0;
+  return 2.0 * kPi * d.frequency_hz * t_s + common::DegToRad(d.phase_deg);
 }
 
 std::string Fmt(double v) { return common::FormatSignificant(v, 12); }

@@ -10,6 +10,7 @@
 
 #include "common/csv_writer.h"
 #include "common/text_io.h"
+#include "common/units.h"
 #include "common/yaml_fields.h"
 #include "processing/solver/mle.h"
 #include "sessions/interchange/csv_reader.h"
@@ -282,7 +283,7 @@ MirrorPosesSummary SummariseSolve(const solver::SolveOutput& out, double solve_t
     s.variance_factors.push_back(
         {solver::MleFamilyName(f), out.mle.variance_factor[f], out.mle.redundancy[f]});
   const Eigen::Matrix<double, 6, 1> sd = out.mirror0_cov.diagonal().cwiseSqrt();
-  s.mirror0_sigma_rotation_deg = sd.head<3>() * 180 / M_PI;
+  s.mirror0_sigma_rotation_deg = sd.head<3>() * common::kDegPerRad;
   s.mirror0_sigma_origin_mm = sd.tail<3>();
   double sa = 0, sb = 0, st = 0;
   for (const auto& r : out.planes) {

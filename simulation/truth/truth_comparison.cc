@@ -8,6 +8,7 @@
 #include <utility>
 #include <vector>
 
+#include "common/units.h"
 #include "mocks/rig/truth_io.h"
 #include "processing/geometry/mirror_frame.h"
 #include "processing/geometry/plane_line.h"
@@ -60,11 +61,11 @@ class SimTruthComparison : public report::TruthComparison {
                    M_PI);
       const geometry::MirrorPose t =
           geometry::PoseFromWorldPlane(*truth_frame_, it->second.plane_in_world);
-      ea.push_back(p.alpha_deg - t.alpha_rad * 180.0 / M_PI);
-      eb.push_back(p.beta_deg - t.beta_rad * 180.0 / M_PI);
+      ea.push_back(p.alpha_deg - common::RadToDeg(t.alpha_rad));
+      eb.push_back(p.beta_deg - common::RadToDeg(t.beta_rad));
       et.push_back(p.trans_mm - t.trans_mm);
-      tru.x.push_back(t.alpha_rad * 180.0 / M_PI);
-      tru.y.push_back(t.beta_rad * 180.0 / M_PI);
+      tru.x.push_back(common::RadToDeg(t.alpha_rad));
+      tru.y.push_back(common::RadToDeg(t.beta_rad));
     }
     report->normal_rms_vs_truth_deg = Rms(en);
     report->alpha_rms_vs_truth_deg = Rms(ea);
@@ -102,10 +103,10 @@ class SimTruthComparison : public report::TruthComparison {
       for (auto& p : tr) {
         const geometry::Plane plane = geometry::WorldPlaneFromPose(
             truth_.world_from_mirror0,
-            {p.alpha_deg * M_PI / 180.0, p.beta_deg * M_PI / 180.0, p.trans_mm});
+            {common::DegToRad(p.alpha_deg), common::DegToRad(p.beta_deg), p.trans_mm});
         const geometry::MirrorPose q = geometry::PoseFromWorldPlane(*truth_frame_, plane);
-        p.alpha_deg = q.alpha_rad * 180.0 / M_PI;
-        p.beta_deg = q.beta_rad * 180.0 / M_PI;
+        p.alpha_deg = common::RadToDeg(q.alpha_rad);
+        p.beta_deg = common::RadToDeg(q.beta_rad);
         p.trans_mm = q.trans_mm;
       }
     }
