@@ -56,10 +56,15 @@ void Identify(const GenArgs& args) {
   for (const auto* unit : {&config.unit1, &config.unit2}) {
     auto g = msmcal::gen::OpenKeysight33500(*unit);
     const auto id = g->Identify();
+    if (!id.ok()) throw std::runtime_error(id.status().message);
+    const auto options = g->Options();
+    if (!options.ok()) throw std::runtime_error(options.status().message);
+    const auto locked = g->ReferenceLocked();
+    if (!locked.ok()) throw std::runtime_error(locked.status().message);
     std::printf("%s %s:%d: %s %s serial %s firmware %s, options '%s', reference %s\n",
                 unit->name.c_str(), unit->link.host.c_str(), unit->link.port,
-                id.manufacturer.c_str(), id.model.c_str(), id.serial.c_str(), id.firmware.c_str(),
-                g->Options().c_str(), g->ReferenceLocked() ? "external (locked)" : "internal");
+                id->manufacturer.c_str(), id->model.c_str(), id->serial.c_str(),
+                id->firmware.c_str(), options->c_str(), *locked ? "external (locked)" : "internal");
   }
 }
 

@@ -13,6 +13,8 @@
 #include <string_view>
 #include <vector>
 
+#include "common/status.h"
+
 namespace msmcal::camera {
 
 // Pixel formats the drivers hand out. Data is tightly packed row by row (stride = width * bytes
@@ -68,14 +70,10 @@ struct StreamStats {
   uint64_t missing_frames = 0;
 };
 
-// Result of an operation that can fail for expected reasons (device refused a value, device gone).
-struct Status {
-  bool ok = true;
-  std::string message;
-  static Status Ok() { return {}; }
-  static Status Error(std::string message) { return {false, std::move(message)}; }
-  explicit operator bool() const { return ok; }
-};
+// Result of an operation that can fail for expected reasons (device refused a value, device
+// gone): the drivers' one result type (common/status.h).
+using Status = common::Status;
+using common::StatusCode;
 
 struct FrameInfo {
   int width = 0;

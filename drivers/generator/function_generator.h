@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include "common/status.h"
 #include "drivers/scpi/scpi_client.h"
 #include "drivers/scpi/scpi_text.h"
 
@@ -63,12 +64,15 @@ std::string CheckAgainstInstrument(const std::string& field, const ChannelLimits
 std::string CheckLimits(const std::string& channel_name, const ChannelSetup& setup,
                         const ChannelLimits& limits);
 
+// What RigGenerators (the session's composite) throws when a unit's Status is not ok; kind() is
+// the Status's code, grouped (kLink: no connection, a timeout, a malformed reply).
 class GeneratorError : public std::runtime_error {
  public:
-  enum class Kind { kLimit, kIdentity, kLock, kInstrument };
+  enum class Kind { kLimit, kIdentity, kLock, kInstrument, kLink };
   GeneratorError(Kind kind, const std::string& message)
       : std::runtime_error(message), kind_(kind) {}
   Kind kind() const { return kind_; }
+  static Kind KindOf(common::StatusCode code);
 
  private:
   Kind kind_;
@@ -77,45 +81,48 @@ class GeneratorError : public std::runtime_error {
 enum class ReferenceSource { kInternal, kExternal };
 enum class StartTrigger { kBus, kExternal };
 
-// A two-channel generator. Every method either completes (and the instrument's error queue was
-// empty afterwards) or throws: scpi::ScpiError for the wire, GeneratorError for limits,
-// identity, reference lock and instrument errors. Not thread-safe except SafeState(), which may
-// run from a signal-watcher thread while another call is in flight.
+// A two-channel generator. Every method returns the drivers' one result type (common/status.h):
+// ok when it completed and the instrument's error queue was empty afterwards; otherwise the
+// Status names the unit, its endpoint and the command, with a code: kRefused (a limit: nothing
+// was sent), kWrongDevice (identity), kDeviceError (the error queue), kUnavailable / kTimeout /
+// kProtocol (the wire). A channel other than 1 or 2 is a bug (MSMCAL_CHECK). Not thread-safe
+// except SafeState(), which may run from a signal-watcher thread while another call is in
+// flight.
 class FunctionGenerator {
  public:
   virtual ~FunctionGenerator() = default;
   virtual const std::string& name() const = 0;
 
-  // *IDN? and *OPT?; refuses instruments outside the supported family.
-  virtual scpi::Identity Identify() = 0;
-  virtual std::string Options() = 0;
+  // *IDN? and *OPT?; refuses instruments outside the supported family (kWrongDevice).
+  virtual common::Result<scpi::Identity> Identify() = 0;
+  virtual common::Result<std::string> Options() = 0;
   // *RST and *CLS: defaults, outputs off, error queue empty.
-  virtual void Reset() = 0;
+  virtual common::Status Reset() = 0;
   // Checks the channel's limits, then configures it (output state unchanged).
-  virtual void ConfigureChannel(int channel, const ChannelSetup& setup) = 0;
-  virtual void SetOutput(int channel, bool on) = 0;
+  virtual common::Status ConfigureChannel(int channel, const ChannelSetup& setup) = 0;
+  virtual common::Status SetOutput(int channel, bool on) = 0;
   // Replaces the samples of the arb `setup.arb_name` that the channel plays (configured by
   // ConfigureChannel with the same name, point count and sample rate) and selects it again,
   // without clearing volatile memory, re-arming or touching the output: the running burst keeps
   // its start (the mock 33520B and the twin keep the channel's phase reference; on a real
   // 33500 this is the documented assumption of docs/lab-path.md "Per-frame signals", to be checked
   // on the bench with a scope on Trig Out and the laser input). Checks the limits first.
-  virtual void ReplaceArb(int channel, const ChannelSetup& setup) = 0;
-  virtual void SetReference(ReferenceSource source) = 0;
+  virtual common::Status ReplaceArb(int channel, const ChannelSetup& setup) = 0;
+  virtual common::Status SetReference(ReferenceSource source) = 0;
   // True when the unit runs on the external 10 MHz reference.
-  virtual bool ReferenceLocked() = 0;
+  virtual common::Result<bool> ReferenceLocked() = 0;
   // Both channels wait in infinite triggered bursts for `source`; with `trigger_out` the unit
   // forwards its trigger on the rear Trig Out connector.
-  virtual void ArmStart(StartTrigger source, bool trigger_out) = 0;
+  virtual common::Status ArmStart(StartTrigger source, bool trigger_out) = 0;
   // *TRG (bus trigger), then *OPC?.
-  virtual void Trigger() = 0;
-  virtual void SynchronizePhase() = 0;
+  virtual common::Status Trigger() = 0;
+  virtual common::Status SynchronizePhase() = 0;
   // Every output off. Never throws; reconnects first if the connection was lost. Returns true
   // when the instrument confirmed (both OUTPut? replies 0).
   virtual bool SafeState() noexcept = 0;
   // Closes the connection (thread-safe like SafeState(); waits for the exchange in flight), so
   // that an instrument serving one connection at a time lets another client in (the watchdog,
-  // docs/watchdog.md). Later calls throw scpi::ScpiError(kNotConnected); SafeState() reconnects.
+  // docs/watchdog.md). Later calls return kUnavailable; SafeState() reconnects.
   virtual void Disconnect() noexcept = 0;
 };
 
@@ -126,7 +133,8 @@ struct Keysight33500Options {
   std::string Validate() const;  // names "<name>.<field>"
 };
 
-// Connects (deadline-bound) and identifies. The returned driver owns its connection.
+// Connects (deadline-bound) and identifies. The returned driver owns its connection. Throws
+// scpi::ScpiError (no connection) or GeneratorError(kIdentity) when it cannot return one.
 std::unique_ptr<FunctionGenerator> OpenKeysight33500(const Keysight33500Options& options,
                                                      scpi::TranscriptSink transcript = nullptr);
 

@@ -1,11 +1,14 @@
 // Keysight (Agilent) 33500-series driver over SCPI. Sequence per configuration batch: limits
-// checked locally, commands sent, SYSTem:ERRor? drained (any entry becomes a GeneratorError
-// naming the batch).
+// checked locally, commands sent, SYSTem:ERRor? drained (any entry becomes a kDeviceError Status
+// naming the batch). Inside, failures are exceptions (the wire's ScpiError, GeneratorError);
+// each interface method turns them into its common::Status at the boundary.
 #include <algorithm>
 #include <cmath>
+#include <exception>
 #include <regex>
 #include <sstream>
 
+#include "common/check.h"
 #include "drivers/generator/function_generator.h"
 #include "drivers/generator/safe_state.h"
 #include "drivers/scpi/scpi_text.h"
@@ -173,6 +176,25 @@ std::string Keysight33500Options::Validate() const {
   return "";
 }
 
+GeneratorError::Kind GeneratorError::KindOf(common::StatusCode code) {
+  switch (code) {
+    case common::StatusCode::kRefused:
+      return Kind::kLimit;
+    case common::StatusCode::kWrongDevice:
+      return Kind::kIdentity;
+    case common::StatusCode::kNotLocked:
+      return Kind::kLock;
+    case common::StatusCode::kDeviceError:
+      return Kind::kInstrument;
+    case common::StatusCode::kOk:
+    case common::StatusCode::kUnavailable:
+    case common::StatusCode::kTimeout:
+    case common::StatusCode::kProtocol:
+      return Kind::kLink;
+  }
+  return Kind::kLink;
+}
+
 namespace {
 
 class Keysight33500 final : public FunctionGenerator {
@@ -188,10 +210,44 @@ class Keysight33500 final : public FunctionGenerator {
 
   void Open() {
     client_.Connect();
-    Identify();
+    DoIdentify();
   }
 
-  scpi::Identity Identify() override {
+  common::Result<scpi::Identity> Identify() override {
+    return Returned([&] { return DoIdentify(); });
+  }
+  common::Result<std::string> Options() override {
+    return Returned([&] { return DoOptions(); });
+  }
+  common::Status Reset() override {
+    return Completed([&] { DoReset(); });
+  }
+  common::Status ConfigureChannel(int channel, const ChannelSetup& s) override {
+    return Completed([&] { DoConfigureChannel(channel, s); });
+  }
+  common::Status ReplaceArb(int channel, const ChannelSetup& s) override {
+    return Completed([&] { DoReplaceArb(channel, s); });
+  }
+  common::Status SetOutput(int channel, bool on) override {
+    return Completed([&] { DoSetOutput(channel, on); });
+  }
+  common::Status SetReference(ReferenceSource source) override {
+    return Completed([&] { DoSetReference(source); });
+  }
+  common::Result<bool> ReferenceLocked() override {
+    return Returned([&] { return DoReferenceLocked(); });
+  }
+  common::Status ArmStart(StartTrigger source, bool trigger_out) override {
+    return Completed([&] { DoArmStart(source, trigger_out); });
+  }
+  common::Status Trigger() override {
+    return Completed([&] { DoTrigger(); });
+  }
+  common::Status SynchronizePhase() override {
+    return Completed([&] { DoSynchronizePhase(); });
+  }
+
+  scpi::Identity DoIdentify() {
     const std::string reply = client_.Query("*IDN?");
     scpi::Identity id;
     try {
@@ -209,15 +265,15 @@ class Keysight33500 final : public FunctionGenerator {
     return id;
   }
 
-  std::string Options() override { return std::string(scpi::Trim(client_.Query("*OPT?"))); }
+  std::string DoOptions() { return std::string(scpi::Trim(client_.Query("*OPT?"))); }
 
-  void Reset() override {
+  void DoReset() {
     client_.Write("*RST;*CLS");
     client_.WaitOperationComplete();
     Check("*RST;*CLS");
   }
 
-  void ConfigureChannel(int channel, const ChannelSetup& s) override {
+  void DoConfigureChannel(int channel, const ChannelSetup& s) {
     RequireChannel(channel);
     const std::string ch_name = options_.name + ".ch" + std::to_string(channel);
     if (std::string e = CheckLimits(ch_name, s, options_.limits[channel - 1]); !e.empty()) {
@@ -234,11 +290,11 @@ class Keysight33500 final : public FunctionGenerator {
                              "refused: " + ch_name + ": arb has " + std::to_string(points) +
                                  " points, the instrument needs at least 8");
       }
-      if (points > 1'000'000 && Options().find("MEM") == std::string::npos) {
+      if (points > 1'000'000 && DoOptions().find("MEM") == std::string::npos) {
         throw GeneratorError(GeneratorError::Kind::kLimit,
                              "refused: " + ch_name + ": arb has " + std::to_string(points) +
-                                 " points; more than 1 M needs option MEM (*OPT? = '" + Options() +
-                                 "')");
+                                 " points; more than 1 M needs option MEM (*OPT? = '" +
+                                 DoOptions() + "')");
       }
       // Explicit byte order; the payload is written in the same order.
       Send(src + "DATA:VOL:CLE;:FORM:BORD SWAP");
@@ -265,11 +321,11 @@ class Keysight33500 final : public FunctionGenerator {
     Check("configure " + ch_name);
   }
 
-  void ReplaceArb(int channel, const ChannelSetup& s) override {
+  void DoReplaceArb(int channel, const ChannelSetup& s) {
     RequireChannel(channel);
     const std::string ch_name = options_.name + ".ch" + std::to_string(channel);
-    if (s.waveform != Waveform::kArb || s.arb_name.empty())
-      throw std::invalid_argument(Who() + ": ReplaceArb needs an arb setup with a name");
+    MSMCAL_CHECK(s.waveform == Waveform::kArb && !s.arb_name.empty())
+        << Who() << ": ReplaceArb needs an arb setup with a name";
     if (std::string e = CheckLimits(ch_name, s, options_.limits[channel - 1]); !e.empty()) {
       throw GeneratorError(GeneratorError::Kind::kLimit, "refused: " + e);
     }
@@ -282,14 +338,14 @@ class Keysight33500 final : public FunctionGenerator {
     Check("replace arb " + ch_name);
   }
 
-  void SetOutput(int channel, bool on) override {
+  void DoSetOutput(int channel, bool on) {
     RequireChannel(channel);
     const std::string cmd = "OUTP" + std::to_string(channel) + (on ? " ON" : " OFF");
     Send(cmd);
     Check(cmd);
   }
 
-  void SetReference(ReferenceSource source) override {
+  void DoSetReference(ReferenceSource source) {
     const std::string cmd =
         std::string("ROSC:SOUR ") + (source == ReferenceSource::kExternal ? "EXT" : "INT");
     Send(cmd);
@@ -297,9 +353,9 @@ class Keysight33500 final : public FunctionGenerator {
     Check(cmd);
   }
 
-  bool ReferenceLocked() override { return scpi::Trim(client_.Query("ROSC:SOUR:CURR?")) == "EXT"; }
+  bool DoReferenceLocked() { return scpi::Trim(client_.Query("ROSC:SOUR:CURR?")) == "EXT"; }
 
-  void ArmStart(StartTrigger source, bool trigger_out) override {
+  void DoArmStart(StartTrigger source, bool trigger_out) {
     const std::string src_name = source == StartTrigger::kBus ? "BUS" : "EXT";
     std::string cmd;
     for (int c = 1; c <= 2; ++c) {
@@ -311,13 +367,13 @@ class Keysight33500 final : public FunctionGenerator {
     Check("arm start trigger (" + src_name + ")");
   }
 
-  void Trigger() override {
+  void DoTrigger() {
     Send("*TRG");
     client_.WaitOperationComplete();
     Check("*TRG");
   }
 
-  void SynchronizePhase() override {
+  void DoSynchronizePhase() {
     Send("PHAS:SYNC");
     Check("PHAS:SYNC");
   }
@@ -352,9 +408,70 @@ class Keysight33500 final : public FunctionGenerator {
   std::string Who() const { return "'" + options_.name + "' at " + client_.Endpoint(); }
 
   void RequireChannel(int channel) const {
-    if (channel != 1 && channel != 2) {
-      throw std::invalid_argument(Who() + ": channel " + std::to_string(channel) +
-                                  " does not exist (1 or 2)");
+    MSMCAL_CHECK(channel == 1 || channel == 2)
+        << Who() << ": channel " << channel << " does not exist (1 or 2)";
+  }
+
+  // The implementation's exceptions (the wire's ScpiError, GeneratorError for limits, identity
+  // and the error queue) as the interface's Status.
+  static common::Status StatusOf(const std::exception_ptr& e) {
+    try {
+      std::rethrow_exception(e);
+    } catch (const GeneratorError& g) {
+      return common::Status::Error(g.what(), CodeOf(g.kind()));
+    } catch (const scpi::ScpiError& w) {
+      return common::Status::Error(w.what(), CodeOf(w.kind()));
+    }
+  }
+  static common::StatusCode CodeOf(GeneratorError::Kind k) {
+    switch (k) {
+      case GeneratorError::Kind::kLimit:
+        return common::StatusCode::kRefused;
+      case GeneratorError::Kind::kIdentity:
+        return common::StatusCode::kWrongDevice;
+      case GeneratorError::Kind::kLock:
+        return common::StatusCode::kNotLocked;
+      case GeneratorError::Kind::kInstrument:
+        return common::StatusCode::kDeviceError;
+      case GeneratorError::Kind::kLink:
+        return common::StatusCode::kUnavailable;
+    }
+    return common::StatusCode::kDeviceError;
+  }
+  static common::StatusCode CodeOf(scpi::ErrorKind k) {
+    switch (k) {
+      case scpi::ErrorKind::kTimeout:
+        return common::StatusCode::kTimeout;
+      case scpi::ErrorKind::kGarbage:
+        return common::StatusCode::kProtocol;
+      case scpi::ErrorKind::kInstrument:
+        return common::StatusCode::kDeviceError;
+      case scpi::ErrorKind::kConnectFailed:
+      case scpi::ErrorKind::kConnectionLost:
+      case scpi::ErrorKind::kNotConnected:
+        return common::StatusCode::kUnavailable;
+    }
+    return common::StatusCode::kUnavailable;
+  }
+  template <typename F>
+  common::Status Completed(F&& f) {
+    try {
+      f();
+      return common::Status::Ok();
+    } catch (const GeneratorError&) {
+      return StatusOf(std::current_exception());
+    } catch (const scpi::ScpiError&) {
+      return StatusOf(std::current_exception());
+    }
+  }
+  template <typename F>
+  auto Returned(F&& f) -> common::Result<decltype(f())> {
+    try {
+      return f();
+    } catch (const GeneratorError&) {
+      return StatusOf(std::current_exception());
+    } catch (const scpi::ScpiError&) {
+      return StatusOf(std::current_exception());
     }
   }
 

@@ -46,6 +46,15 @@ RigSignalPlan PlanRigSignals(const RigSignalsConfig& c) {
 RigGenerators::RigGenerators(FunctionGenerator& master, FunctionGenerator& slave)
     : master_(master), slave_(slave) {}
 
+namespace {
+
+// A unit's failed Status as the session's exception.
+void Must(const common::Status& s) {
+  if (!s) throw GeneratorError(GeneratorError::KindOf(s.code), s.message);
+}
+
+}  // namespace
+
 template <typename F>
 void RigGenerators::Guarded(F&& f) {
   try {
@@ -58,7 +67,9 @@ void RigGenerators::Guarded(F&& f) {
 
 void RigGenerators::VerifyLock() {
   Guarded([&] {
-    if (!slave_.ReferenceLocked()) {
+    const common::Result<bool> locked = slave_.ReferenceLocked();
+    Must(locked.ok() ? common::Status::Ok() : locked.status());
+    if (!*locked) {
       throw GeneratorError(GeneratorError::Kind::kLock,
                            "'" + slave_.name() +
                                "' is not locked to the external 10 MHz reference from '" +
@@ -69,34 +80,34 @@ void RigGenerators::VerifyLock() {
 
 void RigGenerators::Apply(const RigSignalPlan& plan, bool fast_on, bool slow_on) {
   Guarded([&] {
-    master_.Reset();
-    slave_.Reset();
-    master_.SetReference(ReferenceSource::kInternal);
-    slave_.SetReference(ReferenceSource::kExternal);
+    Must(master_.Reset());
+    Must(slave_.Reset());
+    Must(master_.SetReference(ReferenceSource::kInternal));
+    Must(slave_.SetReference(ReferenceSource::kExternal));
     VerifyLock();
-    master_.ConfigureChannel(1, plan.unit1_ch1);
-    master_.ConfigureChannel(2, plan.unit1_ch2);
-    slave_.ConfigureChannel(1, plan.unit2_ch1);
-    slave_.ConfigureChannel(2, plan.unit2_ch2);
-    master_.ArmStart(StartTrigger::kBus, /*trigger_out=*/true);
-    slave_.ArmStart(StartTrigger::kExternal, /*trigger_out=*/false);
-    if (fast_on) master_.SetOutput(1, true);
-    if (slow_on) master_.SetOutput(2, true);
-    for (int c = 1; c <= 2; ++c) slave_.SetOutput(c, true);
-    master_.Trigger();
+    Must(master_.ConfigureChannel(1, plan.unit1_ch1));
+    Must(master_.ConfigureChannel(2, plan.unit1_ch2));
+    Must(slave_.ConfigureChannel(1, plan.unit2_ch1));
+    Must(slave_.ConfigureChannel(2, plan.unit2_ch2));
+    Must(master_.ArmStart(StartTrigger::kBus, /*trigger_out=*/true));
+    Must(slave_.ArmStart(StartTrigger::kExternal, /*trigger_out=*/false));
+    if (fast_on) Must(master_.SetOutput(1, true));
+    if (slow_on) Must(master_.SetOutput(2, true));
+    for (int c = 1; c <= 2; ++c) Must(slave_.SetOutput(c, true));
+    Must(master_.Trigger());
     VerifyLock();
   });
 }
 
 void RigGenerators::SetDrives(bool fast_on, bool slow_on) {
   Guarded([&] {
-    master_.SetOutput(1, fast_on);
-    master_.SetOutput(2, slow_on);
+    Must(master_.SetOutput(1, fast_on));
+    Must(master_.SetOutput(2, slow_on));
   });
 }
 
 void RigGenerators::ReplaceLaserArb(const ChannelSetup& laser) {
-  Guarded([&] { slave_.ReplaceArb(1, laser); });
+  Guarded([&] { Must(slave_.ReplaceArb(1, laser)); });
 }
 
 bool RigGenerators::SafeState() noexcept {

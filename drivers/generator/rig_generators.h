@@ -23,8 +23,9 @@ struct RigSignalPlan {
 // (from the signal design) when the design violates a limit.
 RigSignalPlan PlanRigSignals(const RigSignalsConfig& config);
 
-// Applies a plan to the master and slave units. Any failure runs the safe state on both units
-// before the exception propagates.
+// Applies a plan to the master and slave units. A unit's failed Status becomes GeneratorError
+// (its kind from the Status's code); any failure runs the safe state on both units before the
+// exception propagates.
 class RigGenerators {
  public:
   RigGenerators(FunctionGenerator& master, FunctionGenerator& slave);

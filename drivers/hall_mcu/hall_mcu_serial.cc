@@ -85,8 +85,9 @@ class SerialHallMcu final : public HallSensor {
     if (!r.ok) return r;
     std::optional<IdentifyInfo> id = DecodeIdentify(reply.data);
     if (!id)
-      return {false,
-              "identify: malformed reply data (" + std::to_string(reply.data.size()) + " bytes)"};
+      return CommandResult::Error(
+          "identify: malformed reply data (" + std::to_string(reply.data.size()) + " bytes)",
+          StatusCode::kProtocol);
     if (info != nullptr) info->identify = *id;
     return r;
   }
@@ -96,7 +97,8 @@ class SerialHallMcu final : public HallSensor {
     return Command(FrameType::kSetRate, EncodeRate(rate_hz));
   }
   CommandResult SetSensor(const SensorSettings& settings) override {
-    if (std::string msg = settings.Validate(); !msg.empty()) return {false, "set_sensor: " + msg};
+    if (std::string msg = settings.Validate(); !msg.empty())
+      return CommandResult::Error("set_sensor: " + msg, StatusCode::kRefused);
     return Command(FrameType::kSetSensor, EncodeSensorSettings(settings));
   }
   CommandResult RequestStatus() override { return Command(FrameType::kGetStatus, {}); }
@@ -224,7 +226,9 @@ class SerialHallMcu final : public HallSensor {
     const auto deadline = Clock::now() + std::chrono::milliseconds(options_.command_timeout_ms);
     std::string why;
     if (!WriteAll(EncodeFrame(frame), deadline, &why)) {
-      return {false, std::string(name) + ": cannot write to " + options_.device + ": " + why};
+      return CommandResult::Error(
+          std::string(name) + ": cannot write to " + options_.device + ": " + why,
+          StatusCode::kUnavailable);
     }
     std::optional<ReplyPayload> reply;
     Drain(&pending_, &seq, &reply);
@@ -236,17 +240,25 @@ class SerialHallMcu final : public HallSensor {
         decoder_.Feed(std::span<const uint8_t>(rx_.data(), n));
         Drain(&pending_, &seq, &reply);
       } else if (timed_out) {
-        return {false, std::string(name) + ": no reply from " + options_.device + " within " +
-                           std::to_string(options_.command_timeout_ms) + " ms"};
+        return CommandResult::Error(std::string(name) + ": no reply from " + options_.device +
+                                        " within " + std::to_string(options_.command_timeout_ms) +
+                                        " ms",
+                                    StatusCode::kTimeout);
       } else if (ec) {
-        return {false, std::string(name) + ": " + options_.device + ": " + ec.message()};
+        return CommandResult::Error(
+            std::string(name) + ": " + options_.device + ": " + ec.message(),
+            StatusCode::kUnavailable);
       }
     }
     if (reply->command != static_cast<uint8_t>(type)) {
-      return {false, std::string(name) + ": reply names command " + std::to_string(reply->command)};
+      return CommandResult::Error(
+          std::string(name) + ": reply names command " + std::to_string(reply->command),
+          StatusCode::kProtocol);
     }
     if (reply->result != ReplyResult::kOk) {
-      return {false, std::string(name) + ": rejected by the MCU: " + ToString(reply->result)};
+      return CommandResult::Error(
+          std::string(name) + ": rejected by the MCU: " + ToString(reply->result),
+          StatusCode::kDeviceError);
     }
     if (out != nullptr) *out = std::move(*reply);
     return {};

@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "common/status.h"
 #include "drivers/hall_mcu/protocol.h"
 
 namespace msmcal::hall_mcu {
@@ -95,12 +96,11 @@ struct ReadResult {
   std::string message;  // why, for kStall and kClosed
 };
 
-// Result of a command: ok, or a message naming the command and what failed (rejected by the MCU,
-// no reply within the deadline, I/O error).
-struct CommandResult {
-  bool ok = true;
-  std::string message;
-};
+// Result of a command: ok, or a message naming the command and what failed (rejected by the MCU:
+// kDeviceError, no reply within the deadline: kTimeout, I/O error: kUnavailable); the drivers'
+// one result type (common/status.h).
+using CommandResult = common::Status;
+using common::StatusCode;
 
 struct HallMcuOptions {
   std::string device = "/dev/ttyACM0";  // serial device path (a pty path works the same)

@@ -244,10 +244,11 @@ RigCheckResult CheckRig(const OrchestratorOptions& options, const dataset::Recor
     const std::string name = "unit" + std::to_string(unit);
     try {
       *g = instruments.OpenGenerator(o, transcript ? transcript->Sink(name) : nullptr);
-      const scpi::Identity id = (*g)->Identify();
-      r.found.push_back(o.name + ": " + id.model);
+      const common::Result<scpi::Identity> id = (*g)->Identify();
+      if (!id.ok()) throw std::runtime_error(id.status().message);
+      r.found.push_back(o.name + ": " + id->model);
       r.instruments.emplace_back(
-          o.name, id.manufacturer + " " + id.model + " " + id.serial + " " + id.firmware);
+          o.name, id->manufacturer + " " + id->model + " " + id->serial + " " + id->firmware);
     } catch (const std::exception& e) {
       r.problems.push_back("generator " + std::to_string(unit) + " (" + o.link.host + ":" +
                            std::to_string(o.link.port) + "): " + e.what());
@@ -257,11 +258,15 @@ RigCheckResult CheckRig(const OrchestratorOptions& options, const dataset::Recor
   open_generator(2, options.generators.unit2, &inst->slave);
   if (inst->master && inst->slave) {
     try {
-      inst->master->Reset();
-      inst->slave->Reset();
-      inst->master->SetReference(gen::ReferenceSource::kInternal);
-      inst->slave->SetReference(gen::ReferenceSource::kExternal);
-      if (!inst->slave->ReferenceLocked())
+      // The first failure ends the check (what follows depends on it).
+      common::Status s = inst->master->Reset();
+      if (s) s = inst->slave->Reset();
+      if (s) s = inst->master->SetReference(gen::ReferenceSource::kInternal);
+      if (s) s = inst->slave->SetReference(gen::ReferenceSource::kExternal);
+      common::Result<bool> locked = s ? inst->slave->ReferenceLocked() : common::Result<bool>(s);
+      if (!locked.ok())
+        r.problems.push_back("generator reference check: " + locked.status().message);
+      else if (!*locked)
         r.problems.push_back(
             "generator 2 is not locked to generator 1's 10 MHz reference "
             "(check the reference cable)");

@@ -46,7 +46,7 @@ TEST_F(Keysight33500Test, AcceptsAgilentAndKeysightIdentities) {
         "Agilent Technologies,33511B,MY3,1.0"}) {
     Start(id);
     auto g = OpenKeysight33500(Options());
-    EXPECT_EQ(g->Identify().manufacturer, std::string(id).substr(0, std::string(id).find(',')));
+    EXPECT_EQ(g->Identify()->manufacturer, std::string(id).substr(0, std::string(id).find(',')));
   }
 }
 
@@ -68,14 +68,14 @@ TEST_F(Keysight33500Test, RefusesOtherInstruments) {
 TEST_F(Keysight33500Test, ConfiguresSineAndReadsBackState) {
   Start("Keysight Technologies,33520B,MY2,4.0");
   auto g = OpenKeysight33500(Options());
-  g->Reset();
+  ASSERT_TRUE(g->Reset());
   ChannelSetup s;
   s.frequency_hz = 1234.5;
   s.amplitude_vpp = 2.5;
   s.offset_v = -0.25;
   s.phase_deg = 30;
-  g->ConfigureChannel(1, s);
-  g->SetOutput(1, true);
+  ASSERT_TRUE(g->ConfigureChannel(1, s));
+  ASSERT_TRUE(g->SetOutput(1, true));
   const sim::ChannelSignal c = unit_->Signal(1);
   EXPECT_EQ(c.function, sim::Function::kSin);
   EXPECT_DOUBLE_EQ(c.frequency_hz, 1234.5);
@@ -93,7 +93,7 @@ TEST_F(Keysight33500Test, ConfiguresSineAndReadsBackState) {
 TEST_F(Keysight33500Test, SafeStateConfirmsOnANewConnectionWhenTheOpenOneIsDropped) {
   Start("Keysight Technologies,33520B,MY2,4.0");
   auto g = OpenKeysight33500(Options());
-  g->SetOutput(1, true);
+  ASSERT_TRUE(g->SetOutput(1, true));
   ASSERT_TRUE(unit_->AnyOutputOn());
   const uint64_t connections = server_->ConnectionsAccepted();
   server_->InjectFault(sim::ParseFault("drop,match=OUTP1 OFF"));
@@ -113,23 +113,20 @@ TEST_F(Keysight33500Test, LimitsAreRefusedBeforeAnythingIsSent) {
   ChannelSetup s;
   s.frequency_hz = 1200;
   s.amplitude_vpp = 4.5;
-  try {
-    g->ConfigureChannel(1, s);
-    FAIL();
-  } catch (const GeneratorError& e) {
-    EXPECT_EQ(e.kind(), GeneratorError::Kind::kLimit);
-    EXPECT_STREQ(
-        e.what(),
-        "refused: unit1.ch1 (fast_coil): amplitude_vpp = 4.5 outside the limit [0, 4] Vpp");
-  }
+  const common::Status refused = g->ConfigureChannel(1, s);
+  EXPECT_FALSE(refused);
+  EXPECT_EQ(refused.code, common::StatusCode::kRefused);
+  EXPECT_EQ(refused.message,
+            "refused: unit1.ch1 (fast_coil): amplitude_vpp = 4.5 outside the limit [0, 4] Vpp");
   s.amplitude_vpp = 1.0;
   s.frequency_hz = 999;
-  EXPECT_THROW(g->ConfigureChannel(1, s), GeneratorError);
+  EXPECT_EQ(g->ConfigureChannel(1, s).code, common::StatusCode::kRefused);
   s.frequency_hz = 1200;
   s.offset_v = 0.6;
-  EXPECT_THROW(g->ConfigureChannel(1, s), GeneratorError);
+  EXPECT_EQ(g->ConfigureChannel(1, s).code, common::StatusCode::kRefused);
   s.offset_v = 0;
-  EXPECT_THROW(g->ConfigureChannel(2, s), GeneratorError);  // channel 2: no limits configured
+  // Channel 2: no limits configured.
+  EXPECT_EQ(g->ConfigureChannel(2, s).code, common::StatusCode::kRefused);
   EXPECT_EQ(sent.size(), before);
   EXPECT_DOUBLE_EQ(unit_->Signal(1).frequency_hz, 1000.0);  // untouched
 }
@@ -139,7 +136,7 @@ TEST_F(Keysight33500Test, ArbUploadLandsSampleExact) {
   Keysight33500Options o = Options();
   o.limits[1] = {"laser_trigger", 5.0, 2.5, 0.01, 1e3, 0.2};
   auto g = OpenKeysight33500(o);
-  g->Reset();
+  ASSERT_TRUE(g->Reset());
   ChannelSetup s;
   s.waveform = Waveform::kArb;
   s.arb_name = "TRIG";
@@ -150,7 +147,7 @@ TEST_F(Keysight33500Test, ArbUploadLandsSampleExact) {
   s.amplitude_vpp = 5;
   s.offset_v = 2.5;
   s.load_ohm = kHighZ;
-  g->ConfigureChannel(2, s);
+  ASSERT_TRUE(g->ConfigureChannel(2, s));
   const sim::ChannelSignal c = unit_->Signal(2);
   EXPECT_EQ(c.function, sim::Function::kArb);
   ASSERT_TRUE(c.arb_samples);
@@ -161,7 +158,7 @@ TEST_F(Keysight33500Test, ArbUploadLandsSampleExact) {
   EXPECT_TRUE(std::isinf(c.load_ohm));
   // A duty above the laser limit is refused.
   s.arb_samples.assign(1000, 32767);
-  EXPECT_THROW(g->ConfigureChannel(2, s), GeneratorError);
+  EXPECT_EQ(g->ConfigureChannel(2, s).code, common::StatusCode::kRefused);
 }
 
 // An infinite limit never reaches the wire: the driver refuses it before connecting, so no
@@ -179,6 +176,29 @@ TEST_F(Keysight33500Test, AnInfiniteLimitIsRefusedBeforeAnyCommand) {
         << e.what();
   }
   EXPECT_EQ(server_->ConnectionsAccepted(), 0u);
+}
+
+// The wire's failures come back as the Status of the call that met them, with their code: a
+// garbled reply (kProtocol), a connection dropped under a command (kUnavailable), and the
+// instrument's error queue (kDeviceError: a command the 33520B does not know).
+TEST_F(Keysight33500Test, WireAndInstrumentFailuresAreStatusesWithTheirCode) {
+  Start("Keysight Technologies,33520B,MY2,4.0");
+  auto g = OpenKeysight33500(Options());
+  server_->InjectFault(sim::ParseFault("garbage,match=ROSC:SOUR:CURR?"));
+  const common::Result<bool> locked = g->ReferenceLocked();
+  ASSERT_FALSE(locked.ok());
+  EXPECT_EQ(locked.status().code, common::StatusCode::kProtocol) << locked.status().message;
+  EXPECT_TRUE(g->SafeState());  // reconnects
+
+  server_->InjectFault(sim::ParseFault("drop,match=OUTP1 ON"));
+  const common::Status dropped = g->SetOutput(1, true);
+  EXPECT_FALSE(dropped);
+  EXPECT_EQ(dropped.code, common::StatusCode::kUnavailable) << dropped.message;
+  EXPECT_NE(dropped.message.find("127.0.0.1"), std::string::npos) << dropped.message;
+  EXPECT_FALSE(unit_->AnyOutputOn());
+  EXPECT_TRUE(g->SafeState());
+  ASSERT_TRUE(g->Reset());
+  ASSERT_TRUE(g->SynchronizePhase());
 }
 
 }  // namespace

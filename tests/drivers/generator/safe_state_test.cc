@@ -109,7 +109,7 @@ TEST(OpenGeneratorsTest, TheRegistryHoldsEveryOpenGenerator) {
   const RigGeneratorConfig config = testing::RigConfigFor(pair);
   {
     auto g = OpenKeysight33500(config.unit1);
-    g->SetOutput(1, true);
+    ASSERT_TRUE(g->SetOutput(1, true));
     ASSERT_TRUE(pair.unit(1).AnyOutputOn());
     const auto outcomes = SafeStateOfOpenGenerators();
     ASSERT_EQ(outcomes.size(), 1u);

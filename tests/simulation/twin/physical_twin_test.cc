@@ -211,8 +211,8 @@ TEST_F(PhysicalTwinTest, FramesFollowTheWiresAndTheHands) {
   }
 
   // Drives off (laser still firing): the neutral pose, one dot per unblocked beam.
-  master_->SetOutput(1, false);
-  master_->SetOutput(2, false);
+  ASSERT_TRUE(master_->SetOutput(1, false));
+  ASSERT_TRUE(master_->SetOutput(2, false));
   {
     const std::vector<vision::Dot> dots = Dots(FrameAfter(twin_->NowNs()), background);
     EXPECT_EQ(dots.size(), 2u);
@@ -227,7 +227,7 @@ TEST_F(PhysicalTwinTest, FramesFollowTheWiresAndTheHands) {
   }
 
   // Laser output off: no dots at all.
-  slave_->SetOutput(1, false);
+  ASSERT_TRUE(slave_->SetOutput(1, false));
   EXPECT_TRUE(Dots(FrameAfter(twin_->NowNs()), background).empty());
 }
 
@@ -240,11 +240,11 @@ TEST_F(PhysicalTwinTest, Step1DotsLandOnTheSlidingPlate) {
   plate.pose = 6;  // the farthest pose of the default design: its dots lie apart in C1
   s.sliding_plate = plate;
   twin_->Apply(s);
-  slave_->SetOutput(1, false);
+  ASSERT_TRUE(slave_->SetOutput(1, false));
   ApplySignals({ref_->triggers()[0].t_s, ref_->triggers()[1].t_s});
-  slave_->SetOutput(1, false);
+  ASSERT_TRUE(slave_->SetOutput(1, false));
   const cv::Mat dark = FrameAfter(twin_->NowNs());
-  slave_->SetOutput(1, true);
+  ASSERT_TRUE(slave_->SetOutput(1, true));
   // No mirror: every pulse lights the same spot, one dot per beam, where the beam meets the plate.
   const std::vector<vision::Dot> dots = Dots(FrameAfter(twin_->NowNs()), dark);
   std::vector<Eigen::Vector2d> expected;
@@ -323,7 +323,7 @@ TEST_F(PhysicalTwinTest, HallMcuStreamsAndTimestampsTheClockOnlyWhileItIsOn) {
   }
   EXPECT_GT(hi - lo, 10.0);
 
-  slave_->SetOutput(2, false);  // clock output off
+  ASSERT_TRUE(slave_->SetOutput(2, false));  // clock output off
   std::vector<hall_mcu::HallSample> skip;
   // What was in flight: the mock MCU hands its output over in blocks of 4 KiB (~170 readings).
   (void)read(400, &skip);
