@@ -27,15 +27,15 @@ import hashlib
 import json
 import os
 import re
-import select
 import shutil
 import signal
 import sqlite3
 import subprocess
 import sys
 import tempfile
-import threading
 import time
+
+from msmcal_harness import Lines, scpi, wait_pid  # scripts/msmcal_harness.py
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(HERE)
@@ -147,43 +147,12 @@ CI_SUBSET = ["scpi-drop-apply", "mcu-stall", "disk-full-images", "sigKILL-step1"
 # ---------------------------------------------------------------------------------------------
 # Inside the namespaces: one row.
 
-def scpi_query(port, text, timeout_s=4.0):
-    """One query on a new connection (the mock serves one at a time: others must be closed)."""
-    import socket
-    with socket.create_connection(("127.0.0.1", port), timeout=timeout_s) as s:
-        s.sendall(text.encode() + b"\n")
-        data = b""
-        while not data.endswith(b"\n"):
-            chunk = s.recv(4096)
-            if not chunk:
-                break
-            data += chunk
-        return data.decode(errors="replace").strip()
-
-
-def wait_pid(pid, deadline_s):
-    """Waits for a child (or a process reparented to us: we are a subreaper) to end; its status,
-    or None when it is still running at the deadline or is not ours."""
-    try:
-        fd = os.pidfd_open(pid)
-    except OSError:
-        return None
-    try:
-        if not select.select([fd], [], [], deadline_s)[0]:
-            return None
-        try:
-            return os.waitpid(pid, 0)[1]
-        except ChildProcessError:
-            return None
-    finally:
-        os.close(fd)
-
-
 CHILDREN = []  # processes a row started (ended by the row runner if it fails)
 
 
 class Session:
-    """A running msmcal process whose stdout lines are collected and can be waited for."""
+    """A running msmcal process (its own process group) whose output lines go to `log_path` and
+    can be waited for (msmcal_harness.Lines)."""
 
     def __init__(self, argv, log_path):
         self.log = open(log_path, "w")
@@ -191,34 +160,10 @@ class Session:
                                      stdin=subprocess.DEVNULL, text=True, errors="replace",
                                      start_new_session=True)
         CHILDREN.append(self.proc)
-        self.lines = []
-        self.cv = threading.Condition()
-        self.done = False
-        self.reader = threading.Thread(target=self._read, daemon=True)
-        self.reader.start()
-
-    def _read(self):
-        for line in self.proc.stdout:
-            self.log.write(line)
-            self.log.flush()
-            with self.cv:
-                self.lines.append(line.rstrip("\n"))
-                self.cv.notify_all()
-        with self.cv:
-            self.done = True
-            self.cv.notify_all()
+        self.lines = Lines(self.proc, log=self.log)
 
     def wait_line(self, pattern, deadline_s):
-        rx = re.compile(pattern)
-        end = time.monotonic() + deadline_s
-        with self.cv:
-            while True:
-                if any(rx.search(l) for l in self.lines):
-                    return True
-                left = end - time.monotonic()
-                if self.done or left <= 0:
-                    return False
-                self.cv.wait(left)
+        return self.lines.wait_for(pattern, deadline_s) is not None
 
     def wait(self, deadline_s):
         try:
@@ -227,13 +172,12 @@ class Session:
             self.proc.kill()
             self.proc.wait()
             self.lines.append("(campaign: killed after %d s)" % deadline_s)
-        self.reader.join(5)
+        self.lines.reader.join(5)
         self.log.close()
         return self.proc.returncode
 
     def text(self):
-        with self.cv:
-            return "\n".join(self.lines)
+        return self.lines.text()
 
 
 def fill_disk(path, leave_bytes):
@@ -411,7 +355,7 @@ def run_row(fault, msmcal, work):
     outputs = []
     for port in PORTS:
         try:
-            outputs.append(scpi_query(port, "OUTP1?;:OUTP2?"))
+            outputs.append(scpi(port, "OUTP1?;:OUTP2?", timeout_s=4.0))
         except OSError as e:
             outputs.append("no answer (%s)" % e)
     off = all(o == "0;0" for o in outputs)

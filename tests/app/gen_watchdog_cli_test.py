@@ -16,43 +16,14 @@ import ctypes
 import os
 import select
 import signal
-import socket
 import subprocess
 import sys
 import tempfile
 import time
 
+from cli_testlib import fail, scpi, wait_child  # tests/app/cli_testlib.py
+
 PR_SET_CHILD_SUBREAPER = 36
-
-
-def fail(msg):
-    print("FAIL: " + msg, flush=True)
-    sys.exit(1)
-
-
-def scpi(port, query):
-    with socket.create_connection(("127.0.0.1", port), timeout=2) as s:
-        s.sendall((query + "\n").encode())
-        reply = b""
-        while not reply.endswith(b"\n"):
-            chunk = s.recv(4096)
-            if not chunk:
-                break
-            reply += chunk
-        return reply.decode().strip()
-
-
-def wait_child(pid, timeout_s):
-    """Waits for child `pid` (bounded by timeout_s via a pidfd); returns its wait status."""
-    fd = os.pidfd_open(pid)
-    try:
-        r, _, _ = select.select([fd], [], [], timeout_s)
-        if not r:
-            fail("process %d did not exit within %.1f s" % (pid, timeout_s))
-    finally:
-        os.close(fd)
-    _, status = os.waitpid(pid, 0)
-    return status
 
 
 def watchdog_of(pid):
