@@ -101,8 +101,15 @@ def faults():
               "error", gen=["unit2:drop,match=*IDN?"], error=r"generator 2 .*15026"),
         Fault("scpi-drop-apply", "unit 1 closes the connection at OUTP2 ON (ch1 already on)",
               "error", gen=["unit1:drop,match=OUTP2 ON"], error=r"15025"),
-        Fault("scpi-drop-safe-state", "unit 1 closes the connection at the final OUTP1 OFF",
-              "complete", gen=["unit1:drop,match=OUTP1 OFF"], error=r"safe state"),
+        # The safe state's message is "OUTP1 OFF;:OUTP2 OFF": a bare "OUTP1 OFF" is also the
+        # drive switches between set-ups (per-frame signals).
+        Fault("scpi-drop-safe-state", "unit 1 closes the connection at the final OUTP1 OFF;:OUTP2 OFF",
+              "complete", gen=["unit1:drop,match=OUTP1 OFF;"], error=r"safe state"),
+        # Per-frame signals: step 2 uploads each frame's laser pattern to unit 2 (the 1st upload
+        # is the apply's, the 2nd and 3rd step 2's first two frames).
+        Fault("scpi-drop-step2", "unit 2 closes the connection at a step 2 frame's laser pattern "
+              "upload (its 4th DATA:ARB:DAC)", "error",
+              gen=["unit2:drop,match=DATA:ARB:DAC,after=3"], error=r"15026"),
         Fault("scpi-delay-short", "unit 1 answers *OPC? after *TRG 1 s late (below the timeout)",
               "complete", gen=["unit1:delay,match=*OPC?,after=4,ms=1000"]),
         Fault("scpi-delay-timeout", "unit 1 answers *OPC? after *TRG 5 s late (over the 3 s timeout)",
