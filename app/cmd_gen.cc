@@ -95,8 +95,12 @@ void Apply(const GenArgs& args) {
         msmcal::gen::Watchdog::Start(msmcal::gen::SelfWatchdogLaunch("msmcal", "watchdog"),
                                      msmcal::gen::WatchdogConfigFor(config, args.watchdog_log));
   }
-  msmcal::gen::SafeStateGuard guard([&rig, &watchdog] {
-    if (rig.SafeState()) {
+  msmcal::gen::SafeStateGuard guard([&rig, &watchdog, &transcript] {
+    const bool confirmed = rig.SafeState();
+    // On a signal the process ends right after this action (no destructor runs): the safe
+    // state's own exchange must reach the transcript now.
+    if (transcript) transcript->flush();
+    if (confirmed) {
       if (watchdog) watchdog->StandDown();
     } else if (watchdog) {  // not confirmed by this process: the watchdog acts now
       const msmcal::gen::WatchdogHandOver h = msmcal::gen::HandOverToWatchdog(*watchdog);

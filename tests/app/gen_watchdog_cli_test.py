@@ -7,7 +7,9 @@ SIGKILLed. The test is a child subreaper, so the orphaned watchdog becomes its c
 for the watchdog's exit (bounded by a pidfd), then asks the mocks over their own SCPI port that every output
 is off, and checks that this happened within 2 s of the kill and that the watchdog's report is in
 the log. Then the clean path: SIGINT to `gen apply` (its own guard switches the outputs off and
-stands the watchdog down): the watchdog exits 0 and writes nothing. Runs in its own network
+stands the watchdog down): the watchdog exits 0 and writes nothing, and the --transcript file
+ends with the safe state's exchange (flushed before the signal ends the process; it used to stop
+at the apply). Runs in its own network
 namespace (the rig file's ports 15025/15026).
 
 usage: gen_watchdog_cli_test.py MSMCAL SOURCE_DIR
@@ -16,43 +18,14 @@ import ctypes
 import os
 import select
 import signal
-import socket
 import subprocess
 import sys
 import tempfile
 import time
 
+from cli_testlib import fail, scpi, wait_child  # tests/app/cli_testlib.py
+
 PR_SET_CHILD_SUBREAPER = 36
-
-
-def fail(msg):
-    print("FAIL: " + msg, flush=True)
-    sys.exit(1)
-
-
-def scpi(port, query):
-    with socket.create_connection(("127.0.0.1", port), timeout=2) as s:
-        s.sendall((query + "\n").encode())
-        reply = b""
-        while not reply.endswith(b"\n"):
-            chunk = s.recv(4096)
-            if not chunk:
-                break
-            reply += chunk
-        return reply.decode().strip()
-
-
-def wait_child(pid, timeout_s):
-    """Waits for child `pid` (bounded by timeout_s via a pidfd); returns its wait status."""
-    fd = os.pidfd_open(pid)
-    try:
-        r, _, _ = select.select([fd], [], [], timeout_s)
-        if not r:
-            fail("process %d did not exit within %.1f s" % (pid, timeout_s))
-    finally:
-        os.close(fd)
-    _, status = os.waitpid(pid, 0)
-    return status
 
 
 def watchdog_of(pid):
@@ -64,8 +37,9 @@ def watchdog_of(pid):
     return children[0]
 
 
-def apply(msmcal, rig, log):
-    child = subprocess.Popen([msmcal, "gen", "apply", "--rig", rig, "--watchdog-log", log],
+def apply(msmcal, rig, log, transcript=None):
+    extra = ["--transcript", transcript] if transcript else []
+    child = subprocess.Popen([msmcal, "gen", "apply", "--rig", rig, "--watchdog-log", log] + extra,
                              stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
                              start_new_session=True)
     for line in child.stdout:
@@ -117,7 +91,8 @@ def main():
 
         # SIGINT: msmcal's own guard; the watchdog stands down and writes nothing.
         log = os.path.join(tmp, "int.log")
-        child = apply(msmcal, rig, log)
+        transcript = os.path.join(tmp, "int-transcript.txt")
+        child = apply(msmcal, rig, log, transcript)
         watchdog_pid = watchdog_of(child.pid)
         wd_fd = os.pidfd_open(watchdog_pid)
         os.killpg(child.pid, signal.SIGINT)  # as Ctrl-C: the whole process group
@@ -135,6 +110,16 @@ def main():
         if os.path.exists(log):
             with open(log) as f:
                 fail("the watchdog reported after a clean run:\n" + f.read())
+        # The transcript ends with the safe state's exchange, written before the process ended
+        # by the signal: each unit switched off and confirmed "0;0".
+        with open(transcript) as f:
+            exchange = [l.split(" ", 1)[1] for l in f.read().splitlines()]
+        for unit in ("unit1", "unit2"):
+            want = ["%s << OUTP1 OFF;:OUTP2 OFF" % unit, "%s << OUTP1?;:OUTP2?" % unit,
+                    "%s >> 0;0" % unit]
+            mine = [l for l in exchange if l.startswith(unit + " ")]
+            if mine[-3:] != want:
+                fail("the transcript does not end with %s's safe state: %s" % (unit, mine[-3:]))
         print("SIGINT: outputs off by msmcal's guard; watchdog stood down")
     finally:
         mock.send_signal(signal.SIGTERM)

@@ -1,6 +1,7 @@
 #pragma once
 // A child process for tests that signal or kill it: stdin and stdout are pipes to the test
-// (close-on-exec in the child except the two it reads and writes).
+// (close-on-exec in the child except the two it reads and writes); stderr is the test's, or the
+// stdout pipe with stderr_to_stdout.
 
 #include <fcntl.h>
 #include <gtest/gtest.h>
@@ -20,7 +21,7 @@ struct Child {
   int from_child = -1;  // the child's stdout
 };
 
-inline Child Spawn(const std::vector<std::string>& args) {
+inline Child Spawn(const std::vector<std::string>& args, bool stderr_to_stdout = false) {
   int in[2], out[2];
   EXPECT_EQ(pipe2(in, O_CLOEXEC), 0);
   EXPECT_EQ(pipe2(out, O_CLOEXEC), 0);
@@ -28,6 +29,7 @@ inline Child Spawn(const std::vector<std::string>& args) {
   posix_spawn_file_actions_init(&fa);
   posix_spawn_file_actions_adddup2(&fa, in[0], 0);
   posix_spawn_file_actions_adddup2(&fa, out[1], 1);
+  if (stderr_to_stdout) posix_spawn_file_actions_adddup2(&fa, out[1], 2);
   std::vector<char*> argv;
   for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
   argv.push_back(nullptr);
@@ -47,6 +49,14 @@ inline std::string ReadLine(int fd) {
   char ch;
   while (read(fd, &ch, 1) == 1 && ch != '\n') line.push_back(ch);
   return line;
+}
+
+// Everything left on `fd`, to end of file.
+inline std::string ReadAll(int fd) {
+  std::string text;
+  char buf[4096];
+  for (ssize_t n; (n = read(fd, buf, sizeof buf)) > 0;) text.append(buf, static_cast<size_t>(n));
+  return text;
 }
 
 }  // namespace msmcal::testing

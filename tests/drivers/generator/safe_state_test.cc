@@ -13,6 +13,7 @@
 #include <string>
 
 #include "drivers/generator/function_generator.h"
+#include "mocks/generator/mock_server.h"
 #include "test_rig.h"
 #include "tests/testing/child_process.h"
 
@@ -20,6 +21,7 @@ namespace msmcal::gen {
 namespace {
 
 using msmcal::testing::Child;
+using msmcal::testing::ReadAll;
 using msmcal::testing::ReadLine;
 using msmcal::testing::Spawn;
 
@@ -72,6 +74,34 @@ TEST_P(SafeStateTest, OutputsGoOffWhenTheDrivingProcessEnds) {
 
 INSTANTIATE_TEST_SUITE_P(Signals, SafeStateTest,
                          ::testing::Values(SIGTERM, SIGINT, SIGHUP, SIGQUIT, -SIGINT, 0));
+
+// A safe state that cannot be confirmed at signal time is loud and has its own exit status:
+// unit 1 drops the connection at its OUTP1 OFF, and again on the driver's new connection, so
+// its channel 1 stays on; the process must say so on stderr and exit kExitSafeStateUnconfirmed
+// (not die by the signal as if all were well). Unit 2 is still switched off.
+TEST(SafeStateUnconfirmedTest, ASignalWhoseSafeStateFailsExitsUnconfirmedAndSaysSo) {
+  sim::MockGeneratorPair pair(sim::GeneratorPairOptions{});
+  for (int i = 0; i < 2; ++i) pair.server(1).InjectFault(sim::ParseFault("drop,match=OUTP1 OFF"));
+  Child c = Spawn({MSMCAL_SAFE_STATE_CHILD, testing::SourceDir() + "/config/rig.yaml",
+                   std::to_string(pair.port(1)), std::to_string(pair.port(2))},
+                  /*stderr_to_stdout=*/true);
+  ASSERT_EQ(ReadLine(c.from_child), "ready");
+  ASSERT_EQ(kill(c.pid, SIGTERM), 0);
+  const std::string said = ReadAll(c.from_child);
+  int status = 0;
+  ASSERT_EQ(waitpid(c.pid, &status, 0), c.pid);
+  ASSERT_TRUE(WIFEXITED(status)) << "status " << status << "\n" << said;
+  EXPECT_EQ(WEXITSTATUS(status), kExitSafeStateUnconfirmed) << said;
+  EXPECT_NE(said.find("msmcal: SAFE STATE NOT CONFIRMED after signal 15 (SIGTERM): "),
+            std::string::npos)
+      << said;
+  EXPECT_NE(said.find("check the generators' outputs by hand"), std::string::npos) << said;
+  EXPECT_TRUE(pair.unit(1).AnyOutputOn());  // what "not confirmed" is about
+  auto off = [](const sim::Mock33520B& u) { return !u.AnyOutputOnLocked(); };
+  EXPECT_TRUE(pair.unit(2).WaitUntil(off, 10000));
+  close(c.to_child);
+  close(c.from_child);
+}
 
 TEST(SafeStateGuardTest, DestructorRunsActionAndDisarmSkipsIt) {
   int runs = 0;

@@ -6,7 +6,8 @@ usage: pymeasure_33500_test.py SERVER_EXE
 Starts SERVER_EXE (prints "listening on 127.0.0.1:P", serves until its stdin closes) and drives
 it with Debian's python3-pymeasure through pyvisa-py's TCPIP SOCKET resource: each control is
 set to a valid value (twice where it takes several forms) and read back, each measurement read,
-each setting and method called; the error queue must then be empty. A few sets out of range or
+each setting and method called (Instrument's clear and reset included); after every one of these
+the error queue, drained by the driver's check_errors(), must be empty. A few sets out of range or
 in conflict must queue the instrument's error codes. Prints a table of the properties tried and
 passed; exits non-zero when one fails or when the driver has a property this test does not know
 (so a newer PyMeasure cannot pass by skipping).
@@ -17,7 +18,6 @@ import sys
 
 from pymeasure.adapters import VISAAdapter
 from pymeasure.instruments.agilent.agilent33500 import Agilent33500
-from pymeasure.instruments.instrument import Instrument
 
 IDN = "Keysight Technologies,33520B,MY00000042,4.00-1.19-2.00-58-00"
 NO_ERROR = '+0,"No error"'
@@ -78,10 +78,11 @@ def start_server(exe):
 
 
 def driver_properties():
-    """Names of every Instrument.control/measurement/setting property of Agilent33500."""
+    """Names of every property of Agilent33500, the ones it inherits from Instrument included
+    (a newer PyMeasure adds some there: `complete`, `status`, `options`)."""
     names = []
     for cls in Agilent33500.__mro__:
-        if cls in (Instrument, object):
+        if cls is object:
             break
         for name, attr in vars(cls).items():
             if isinstance(attr, property) and name not in names:
@@ -147,9 +148,11 @@ def main():
             table.add(name, len(cases), passed, "; ".join(notes))
 
         got = gen.id  # the driver splits the reply at its commas
-        table.add("id", 1, int(got == IDN.split(",")), "" if got == IDN.split(",") else repr(got))
-        if got != IDN.split(","):
-            failures.append(f"id: {got!r}")
+        errs = errors(gen)
+        ok = got == IDN.split(",") and not errs
+        table.add("id", 1, int(ok), "" if ok else f"{got!r} {errs}")
+        if not ok:
+            failures.append(f"id: {got!r}, errors {errs}")
 
         gen.display = "PYMEASURE"
         shown = gen.ask("DISP:TEXT?").strip()
@@ -160,10 +163,19 @@ def main():
         if not ok:
             failures.append(f"display: {shown!r}, after clear {cleared!r}")
 
+        def method(label, call):
+            """A driver method called; the error queue must be empty after it."""
+            call()
+            errs = errors(gen)
+            if errs:
+                failures.append(f"{label}: errors {errs}")
+
         # arb_file, with the methods that feed it: data_volatile_clear, data_arb (DAC and float).
-        gen.data_volatile_clear()
-        gen.data_arb("PYRAMP", range(-10000, 10000, 2000), data_format="DAC")
-        gen.data_arb("PYFLOAT", [-1.0, -0.5, 0.0, 0.5, 1.0, 0.5, 0.0, -0.5], data_format="float")
+        method("data_volatile_clear", gen.data_volatile_clear)
+        method("data_arb DAC",
+               lambda: gen.data_arb("PYRAMP", range(-10000, 10000, 2000), data_format="DAC"))
+        method("data_arb float", lambda: gen.data_arb(
+            "PYFLOAT", [-1.0, -0.5, 0.0, 0.5, 1.0, 0.5, 0.0, -0.5], data_format="float"))
         passed = 0
         for name in ("PYRAMP", "PYFLOAT"):
             gen.arb_file = name
@@ -174,12 +186,18 @@ def main():
                 failures.append(f"arb_file = {name!r}: read {got!r}")
         table.add("arb_file", 2, passed, "(read back quoted, as the instrument answers)")
 
-        # The remaining methods: a bus-triggered burst, beep.
+        # The remaining methods: a bus-triggered burst, beep, and Instrument's clear / reset.
         gen.write("BURS:NCYC 2;STAT ON;:TRIG:SOUR BUS;:OUTP ON")
-        gen.trigger()
-        gen.wait_for_trigger(timeout=5)
-        gen.beep()
+        method("trigger", gen.trigger)
+        method("wait_for_trigger", lambda: gen.wait_for_trigger(timeout=5))
+        method("beep", gen.beep)
         gen.write("BURS:STAT OFF;:OUTP OFF")
+        gen.write("BOGUS:HEADER")  # one error queued: clear() (*CLS) must empty the queue
+        method("clear", gen.clear)
+        gen.write("FREQ 2500")
+        method("reset", gen.reset)  # *RST: the default 1 kHz again
+        if not close(gen.frequency, 1000.0):
+            failures.append(f"reset: frequency {gen.frequency!r} after *RST, want 1000")
         final = gen.ask("SYST:ERR?").strip()
         if final != NO_ERROR:
             failures.append(f"error queue after the methods: {final!r}")

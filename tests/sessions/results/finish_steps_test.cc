@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <fstream>
+#include <opencv2/core.hpp>
 
 #include "mocks/rig/rig_simulator.h"
 #include "mocks/rig/truth_io.h"
@@ -34,6 +35,30 @@ TEST(FinishSteps, FailuresAreReturnedNamingTheFile) {
   EXPECT_FALSE(predict.ok());
   EXPECT_NE(predict.error.find("absent.yaml"), std::string::npos) << predict.error;
   EXPECT_FALSE(fs::exists(dir.path() / "out.csv"));
+}
+
+// `msmcal solve` reads each image through the check `msmcal interchange check` makes: an image
+// of another size than camera.yaml's image_size stops the solve naming the file and both sizes
+// (it used to go on into the detectors).
+TEST(FinishSteps, SolveRefusesAnImageOfTheWrongSizeNamingTheFile) {
+  TempDir dir;
+  const sim::RigSimulator simulator(testing::TinySim());
+  const dataset::Recording rec = simulator.MakeRecording(/*with_hall=*/false);
+  interchange::WriteRecording(dir.path(), rec);
+  const cv::Mat small(rec.camera.height / 2, rec.camera.width, CV_8UC1, cv::Scalar(128));
+  for (const auto& f : rec.step1) interchange::WriteImageAtomically(dir.path() / f.file, small);
+  for (const auto& f : rec.step2) interchange::WriteImageAtomically(dir.path() / f.file, small);
+  const SolveStepResult solve = RunSolveStep(dir.path(), solver::PipelineOptions{});
+  ASSERT_FALSE(solve.ok());
+  const std::string size = "image is " + std::to_string(rec.camera.width) + "x" +
+                           std::to_string(rec.camera.height / 2) +
+                           " but camera.yaml image_size is [" + std::to_string(rec.camera.width) +
+                           ", " + std::to_string(rec.camera.height) + "]";
+  EXPECT_NE(solve.error.find(size), std::string::npos) << solve.error;
+  bool names_a_frame = false;
+  for (const auto& f : rec.step1) names_a_frame |= solve.error.find(f.file) != std::string::npos;
+  for (const auto& f : rec.step2) names_a_frame |= solve.error.find(f.file) != std::string::npos;
+  EXPECT_TRUE(names_a_frame) << solve.error;
 }
 
 // A simulated folder whose mirror planes are the simulator's truth (the solver has its own
