@@ -2,14 +2,15 @@
 """A rig sweep on the twin (issue 20, docs/lab-path.md "Rig sweeps"), SIGKILLed mid-point and
 continued, end to end through the msmcal binary.
 
-`msmcal mock rig --rig RIG --hands SOCK` serves the twin. A reference session (`msmcal plan`,
-`msmcal session run --operator hook:...`, as twin_session_hook_test.py, with fewer poses and
-triggers; stopped once its session.yaml is written: its own solve is not needed) gives step 1
-and the background Hall recording. `msmcal sweep SWEEP --rig RIG --reference REF --out DIR
---operator hook:...` then runs 2 points that differ in the fast drive's amplitude: per point the
-rig check, step 2 with the actual Hall recording (nobody at the rig: one hands call puts the twin
-in the step 2 state), the truth request, the solve and the Hall calibration. msmcal (not its
-watchdog) is SIGKILLed when point 1 reports its first step 2 frame accepted (the progress line:
+`msmcal mock rig --rig RIG --hands SOCK --hall-link TTY` serves the twin (the rig file keeps
+the lab's hall_mcu.device; the session and the sweep get `--mcu TTY`, as in the README). A
+reference session (`msmcal plan`, `msmcal session run --operator hook:...`, as
+twin_session_hook_test.py, with fewer poses and triggers; stopped once its session.yaml is
+written: its own solve is not needed) gives step 1 and the background Hall recording. `msmcal
+sweep SWEEP --rig RIG --reference REF --out DIR --mcu TTY --operator hook:...` then runs 2
+points that differ in the fast drive's amplitude: per point the rig check, step 2 with the
+actual Hall recording (nobody at the rig: one hands call puts the twin in the step 2 state),
+the truth request, the solve and the Hall calibration. msmcal (not its watchdog) is SIGKILLed when point 1 reports its first step 2 frame accepted (the progress line:
 no sleep), and the same command is run again.
 
 Checked: a point whose board does not match the reference is refused before anything starts;
@@ -47,8 +48,10 @@ def make_rig(source, tmp):
     text = open(os.path.join(source, "config", "rig.yaml")).read()
     # The rig file's camera (the gate is tuned for its ~20 px squares), short Hall recordings,
     # 4 poses with one exposure per step 1 frame, fewer triggers and step 2 frames.
-    for a, b in [("device: /dev/ttyACM0", "device: " + os.path.join(tmp, "tty")),
-                 ("stall_timeout_ms: 500", "stall_timeout_ms: 2000"),  # a loaded machine
+    # The rig file keeps the lab's hall_mcu.device (/dev/ttyACM0): the twin links its pty
+    # elsewhere (--hall-link) and the session and the sweep are given it (--mcu), as the
+    # README's "Running your rig" does.
+    for a, b in [("stall_timeout_ms: 500", "stall_timeout_ms: 2000"),  # a loaded machine
                  ("hall_background_s: 12", "hall_background_s: 1"),
                  ("hall_actual_min_s: 15", "hall_actual_min_s: 1"),
                  ("  poses: 7", "  poses: 4"),
@@ -65,12 +68,13 @@ def make_rig(source, tmp):
     return rig
 
 
-def start_twin(msmcal, rig, sock, log_file):
+def start_twin(msmcal, rig, sock, tty, log_file):
     # No --exposure: the twin integrates the exposure the session sets on the camera. Its output
     # goes to a file: a pipe nobody reads would block the twin once full (it logs the killed
     # client's broken links).
     log = open(log_file, "w")
-    twin = subprocess.Popen([msmcal, "mock", "rig", "--rig", rig, "--hands", sock],
+    twin = subprocess.Popen([msmcal, "mock", "rig", "--rig", rig, "--hands", sock,
+                             "--hall-link", tty],
                             stdout=log, stderr=subprocess.STDOUT)
     log.close()
     deadline = time.monotonic() + 60
@@ -180,6 +184,7 @@ def main():
     t0 = time.monotonic()
     tmp = tempfile.mkdtemp(prefix="twin_rig_sweep_")
     sock = os.path.join(tmp, "hands.sock")
+    tty = os.path.join(tmp, "tty")
     rig = make_rig(source, tmp)
     hook = "hook:%s mock hands --socket %s" % (msmcal, sock)
     plan = os.path.join(tmp, "plan")
@@ -196,16 +201,16 @@ def main():
     out = os.path.join(tmp, "sweep")
     ref = os.path.join(tmp, "reference")
     cmd = [msmcal, "sweep", sweep, "--rig", rig, "--reference", ref, "--out", out,
-           "--operator", hook]
+           "--mcu", tty, "--operator", hook]
 
     twin_log = os.path.join(tmp, "twin.log")
-    twin = start_twin(msmcal, rig, sock, twin_log)
+    twin = start_twin(msmcal, rig, sock, tty, twin_log)
     try:
         # The reference is complete once its session.yaml is written (outputs off, confirmed);
         # its own solve is not needed here, so it is stopped there.
         child = subprocess.Popen([msmcal, "session", "run", "--rig", rig, "--plan", plan,
-                                  "--out", ref, "--operator", hook], stdout=subprocess.PIPE,
-                                 stderr=subprocess.STDOUT, text=True)
+                                  "--out", ref, "--mcu", tty, "--operator", hook],
+                                 stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
         ref_log = []
         for line in child.stdout:
             ref_log.append(line)
