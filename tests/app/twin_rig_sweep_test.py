@@ -19,8 +19,8 @@ done in summary.csv and in the printed summary table; every point folder is a co
 interchange folder (the reference's step 1 images and hall/background.csv, its own step 2,
 trigger table, hall/actual.csv, results, truth); the truth's trigger table is the point's (every
 scan trigger played again after the resume); per point the solved mirror planes are within
-0.2 deg (normal RMS) of the twin's truth, the solved beams within 0.3 deg (direction) and 1 mm
-(point, across the beam) of the truth's, and the two points' true planes differ (each truth is
+0.03 deg (normal RMS: the demo's order, README 0.0016 deg) of the twin's truth, the solved
+beams within 0.05 deg (direction) and 0.2 mm (point, across the beam) of the truth's, and the two points' true planes differ (each truth is
 its own point's drive). The Hall figures against truth are printed, not asserted (the Hall time
 offset on the twin is worked on separately).
 Runs in its own network namespace (ports 15025/15026, GigE Vision 3956).
@@ -154,8 +154,10 @@ def check_point(folder, reference):
         fail("%s: only %d of the truth's %d planes solved" % (name, len(errors),
                                                               len(truth_planes)))
     rms = (sum(e * e for e in errors) / len(errors)) ** 0.5
-    if rms > 0.2:
-        fail("%s: plane normal RMS vs truth %.3f deg > 0.2 deg" % (name, rms))
+    # The demo's accuracy order (README "Figures": 0.0016 deg RMS); this small reference (4
+    # poses, one exposure each) gave 0.003-0.009 deg per point.
+    if rms > 0.03:
+        fail("%s: plane normal RMS vs truth %.4f deg > 0.03 deg" % (name, rms))
     true_beams = beams(os.path.join(folder, "truth", "beams.csv"))
     solved_beams = beams(os.path.join(folder, "results", "beams.csv"))
     worst_dir, worst_off = 0.0, 0.0
@@ -172,8 +174,8 @@ def check_point(folder, reference):
         worst_dir, worst_off = max(worst_dir, d), max(worst_off, off)
     if len(solved_beams) < 2:
         fail("%s: %d beams solved" % (name, len(solved_beams)))
-    if worst_dir > 0.3 or worst_off > 1.0:
-        fail("%s: beams vs truth: direction %.3f deg (> 0.3), %.3f mm across (> 1)" %
+    if worst_dir > 0.05 or worst_off > 0.2:  # seen: 0.008 deg, 0.021 mm
+        fail("%s: beams vs truth: direction %.3f deg (> 0.05), %.3f mm across (> 0.2)" %
              (name, worst_dir, worst_off))
     return truth_planes, "%s: %d planes, normal RMS vs truth %.4f deg (max %.4f); beams within " \
         "%.3f deg, %.3f mm" % (name, len(errors), rms, max(errors), worst_dir, worst_off)
