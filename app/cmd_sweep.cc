@@ -62,6 +62,7 @@ struct SweepArgs {
   std::string rig;        // a rig sweep: the rig file whose fields the axes vary
   std::string reference;  // a rig sweep: the session whose step 1 every point reuses
   std::string operator_spec;
+  std::string mcu;  // a rig sweep: the Hall MCU's device (empty: the rig file's)
   std::string camera_address = "127.0.0.1";
   bool camera_given = false;  // a rig sweep: --camera-address overrides the rig file's camera
   int hook_timeout_s = 600;
@@ -367,6 +368,7 @@ void RunRigSweep(const SweepArgs& args, const fs::path& plan_file, const fs::pat
     lab.rig_yaml = rig.text;
     lab.rig_origin = args.rig + " with the values of point " + point.name;
     lab.camera_address = args.camera_given ? args.camera_address : rig.camera.OpenString();
+    lab.mcu_device = args.mcu;
     lab.camera_frame_rate_hz = rig.camera.frame_rate_hz;
     lab.camera_exposure_us = rig.camera.exposure_us;
     lab.background_seconds = rig.step2.hall_background_s;
@@ -411,8 +413,9 @@ void RunSweepCommand(const SweepArgs& args) {
     RunRigSweep(args, plan_file, dir);
     return;
   }
-  if (!args.reference.empty() || !args.operator_spec.empty())
-    throw std::runtime_error("sweep: --reference and --operator are for a rig sweep (--rig RIG)");
+  if (!args.reference.empty() || !args.operator_spec.empty() || !args.mcu.empty())
+    throw std::runtime_error(
+        "sweep: --reference, --operator and --mcu are for a rig sweep (--rig RIG)");
   const sweep::SweepPlan plan = sweep::LoadSweepPlan(plan_file, simulation::SimSweepParameters());
   const std::vector<sweep::SweepPoint> points = sweep::ExpandPoints(plan);
   std::printf("msmcal sweep: %zu points (%zu axes x %d repeats) into %s\n", points.size(),
@@ -474,6 +477,9 @@ void AddSweepCommands(CLI::App& app) {
   cmd->add_option("--operator", args->operator_spec,
                   "A rig sweep: hook:CMD receives the sweep's one set-up (MSM mounted, camera at "
                   "C2) and each point's truth request (nobody at the rig)");
+  cmd->add_option("--mcu", args->mcu,
+                  "A rig sweep: Hall MCU serial device (default: the rig file's hall_mcu.device; "
+                  "on the twin its --hall-link)");
   cmd->add_option("--hook-timeout", args->hook_timeout_s,
                   "A rig sweep: seconds a hook may take per call")
       ->check(CLI::Range(1, 86400));

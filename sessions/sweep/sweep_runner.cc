@@ -16,9 +16,23 @@ constexpr const char* kPlanFile = "sweep.yaml";
 constexpr const char* kStateFile = "sweep_state.json";
 constexpr const char* kSummaryFile = "summary.csv";
 
-std::string FirstLine(const std::string& s) {
-  const size_t nl = s.find('\n');
-  return nl == std::string::npos ? s : s.substr(0, nl) + " (...)";
+// A failure's message on one line (the summary's reason, the progress line): its lines joined,
+// each list item's "  - " dropped, "; " between them (a space after a line ending in ':'), so a
+// multi-line message such as the rig check's list of problems still names its cause.
+std::string OneLine(const std::string& s) {
+  std::string out;
+  size_t begin = 0;
+  while (begin <= s.size()) {
+    size_t end = s.find('\n', begin);
+    if (end == std::string::npos) end = s.size();
+    std::string line = s.substr(begin, end - begin);
+    const size_t text = line.find_first_not_of(" \t");
+    line = text == std::string::npos ? std::string() : line.substr(text);
+    if (line.rfind("- ", 0) == 0) line.erase(0, 2);
+    if (!line.empty()) out += (out.empty() ? "" : out.back() == ':' ? " " : "; ") + line;
+    begin = end + 1;
+  }
+  return out;
 }
 
 // Checks or creates the sweep folder and its plan copy.
@@ -161,11 +175,11 @@ SweepOutcome RunSweep(const SweepPlan& plan, const fs::path& dir, const SweepHoo
       // resume redoes it) and the error goes to the command, which exits with its status.
       rec.duration_s += hooks.now_s() - point_t0;
       rec.status = PointStatus::kFailed;
-      rec.reason = FirstLine(e.what());
+      rec.reason = OneLine(e.what());
       WriteSweepState(state_file, state);
       throw;
     } catch (const std::exception& e) {
-      failure = FirstLine(e.what());
+      failure = OneLine(e.what());
       if (failure.empty()) failure = "failed (no message)";
     } catch (...) {
       failure = "failed (unknown exception)";

@@ -8,7 +8,9 @@ Usage: guided_pty_test.py MSMCAL_BINARY complete|abort|interrupt
 complete: answers Enter at every prompt (once "r" first, and checks the instructions are shown
   again); checks each prompt names the right action (first: mount the sliding plate at pose 1;
   the background recording: remove the mirror's top frame, asked after the last step-1 frame and
-  before the recording starts; step 2: mount the top frame), then exit status 0, one preview per
+  before the recording starts; step 2: mount the top frame), one prompt per set-up (the frames
+  each block lists cover session.yaml's frames; repeated exposures never prompt: at most one
+  step-1 prompt per 3 step-1 frames), then exit status 0, one preview per
   accepted frame (exactly the frames session.yaml lists), live figures and the report printed.
 abort: answers Enter until the first step-2 frame prompt, then "q": exit status non-zero, the
   generator outputs switched off (safe state), the abort in session_log.txt and in the journal's
@@ -153,6 +155,9 @@ def run(msmcal, mode):
         step1_seen = 0
         background_seen = actual_seen = False
         total = None
+        # The prompt policy (issue 20): one prompt per physical set-up; the frames a block lists
+        # ("frame k of N and M more at this set-up") are all taken after that one prompt.
+        step1_prompts = step1_covered = step2_covered = 0
         while True:
             chunk = child.next_prompt_or_end(PROMPT_DEADLINE_S)
             if chunk is None:
@@ -171,6 +176,17 @@ def run(msmcal, mode):
                     fail("first prompt is not step 1, frame 1: %r" % title, child.out)
                 if "Mount the sliding plate at pose 1 of 4" not in chunk:
                     fail("first prompt does not say to mount the sliding plate at pose 1", chunk)
+            more = re.search(r" and (\d+) more at this set-up", title)
+            covered = 1 + (int(more.group(1)) if more else 0)
+            if title.startswith("Step 1, frame"):
+                step1_prompts += 1
+                step1_covered += covered
+                if covered > 1 and \
+                        "%d frames are taken at this set-up without another prompt" % covered \
+                        not in chunk:
+                    fail("a step-1 block of %d frames does not say so" % covered, chunk)
+            if title.startswith("Step 2, frame"):
+                step2_covered += covered
             if title.startswith("Step 1, frame"):
                 step1_seen += 1
                 if "MSM not mounted" not in chunk:
@@ -221,6 +237,17 @@ def run(msmcal, mode):
             if not os.path.exists(os.path.join(out, "session.yaml")):
                 fail("no session.yaml", text)
             accepted = session_files(out)
+            # No prompt for repeated exposures: the step-1 prompts cover every step-1 frame,
+            # each block its repeated exposures (the simulator takes each step-1 frame 3 times),
+            # so there are fewer step-1 prompts than frames; step 2's blocks cover step 2.
+            n1 = sum(1 for f in accepted if f.startswith("step1/"))
+            n2 = len(accepted) - n1
+            if step1_covered != n1 or step2_covered != n2:
+                fail("prompted blocks cover %d step-1 and %d step-2 frames; session.yaml lists "
+                     "%d and %d" % (step1_covered, step2_covered, n1, n2), text)
+            if not 0 < step1_prompts * 3 <= n1:
+                fail("%d step-1 prompts for %d step-1 frames (3 exposures each): a prompt per "
+                     "repeated exposure?" % (step1_prompts, n1), text)
             previews = sorted(os.listdir(os.path.join(out, "previews")))
             expected = sorted(f.replace("/", "_").replace(".png", ".jpg") for f in accepted)
             if previews != expected:
@@ -229,8 +256,8 @@ def run(msmcal, mode):
                 fail("no live figures printed", text)
             if "== Table I style" not in text or "report: " not in text:
                 fail("the report was not printed", text)
-            print("ok: %d prompts answered (one 'r'), %d frames accepted with previews, exit 0" %
-                  (prompts, len(accepted)))
+            print("ok: %d prompts answered (one 'r'; %d for %d step-1 frames), %d frames "
+                  "accepted with previews, exit 0" % (prompts, step1_prompts, n1, len(accepted)))
         elif mode == "interrupt":
             if status not in (-2, 130):
                 fail("interrupted session: exit status %d, expected SIGINT (-2) or 130" % status,

@@ -70,6 +70,16 @@ cat "$dir/err"
 grep -q "plan drive: generators.unit1.ch1 (fast_coil): frequency_hz = 260 outside the window \[195, 215\] Hz" "$dir/err"
 test ! -e "$dir/new"
 
+# A rig whose drive is outside the fast coil's window: `msmcal plan` refuses, naming the channel's
+# field, the value and the window, and writes nothing.
+sed 's/fast: {frequency_hz: 205,/fast: {frequency_hz: 230,/' "$src/config/rig.yaml" > "$dir/win.yaml"
+if "$msmcal" plan --rig "$dir/win.yaml" --out "$dir/plan3" > "$dir/err" 2>&1; then
+  echo "expected plan to refuse a drive outside the window"; exit 1
+fi
+cat "$dir/err"
+grep -q "win.yaml:[0-9]*: generators.unit1.ch1 (fast_coil): frequency_hz = 230 outside the window \[195, 215\] Hz" "$dir/err"
+test ! -e "$dir/plan3"
+
 # A rig whose trigger design is over the duty limit: `msmcal plan` refuses, writes nothing.
 sed 's/pulse_width_s: 1.0e-6/pulse_width_s: 1.0e-4/' "$src/config/rig.yaml" > "$dir/duty.yaml"
 if "$msmcal" plan --rig "$dir/duty.yaml" --out "$dir/plan2" > "$dir/err" 2>&1; then

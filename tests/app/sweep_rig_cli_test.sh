@@ -6,7 +6,8 @@
 # the duty limit are refused naming the point, the field, the value and the limit, with nothing
 # created and nothing contacted (the test runs in a network namespace where nothing listens).
 # The simulated sweep's options are refused for a rig sweep (an unknown rig file field), and so is
-# a console operator (nobody is at the rig). Running the points: cli.twin_rig_sweep.
+# a console operator (nobody is at the rig), and --mcu without --rig. Running the points (with
+# --mcu): cli.twin_rig_sweep.
 set -euo pipefail
 msmcal="$1"
 src="$2"
@@ -60,4 +61,12 @@ extra="--operator console" refuse console 'axes: {generators.signals.drive.fast.
 # The simulated sweep is unchanged: no --rig, its own options.
 "$msmcal" sweep "$src/config/sweep-example.yaml" --out "$dir/sim" --list > "$dir/sim.out"
 grep -q "^msmcal sweep: 16 points" "$dir/sim.out" || { cat "$dir/sim.out"; exit 1; }
+# --mcu (the twin's --hall-link, as session run --mcu) belongs to a rig sweep only.
+if "$msmcal" sweep "$src/config/sweep-example.yaml" --out "$dir/simmcu" --mcu /tmp/twin-mcu \
+    > "$dir/simmcu.out" 2>&1; then
+  echo "FAIL: --mcu accepted without --rig"; cat "$dir/simmcu.out"; exit 1
+fi
+grep -q -F -- "--mcu are for a rig sweep (--rig RIG)" "$dir/simmcu.out" || {
+  cat "$dir/simmcu.out"; exit 1; }
+test ! -e "$dir/simmcu"
 echo PASS

@@ -2,14 +2,15 @@
 """A rig sweep on the twin (issue 20, docs/lab-path.md "Rig sweeps"), SIGKILLed mid-point and
 continued, end to end through the msmcal binary.
 
-`msmcal mock rig --rig RIG --hands SOCK` serves the twin. A reference session (`msmcal plan`,
-`msmcal session run --operator hook:...`, as twin_session_hook_test.py, with fewer poses and
-triggers; stopped once its session.yaml is written: its own solve is not needed) gives step 1
-and the background Hall recording. `msmcal sweep SWEEP --rig RIG --reference REF --out DIR
---operator hook:...` then runs 2 points that differ in the fast drive's amplitude: per point the
-rig check, step 2 with the actual Hall recording (nobody at the rig: one hands call puts the twin
-in the step 2 state), the truth request, the solve and the Hall calibration. msmcal (not its
-watchdog) is SIGKILLed when point 1 reports its first step 2 frame accepted (the progress line:
+`msmcal mock rig --rig RIG --hands SOCK --hall-link TTY` serves the twin (the rig file keeps
+the lab's hall_mcu.device; the session and the sweep get `--mcu TTY`, as in the README). A
+reference session (`msmcal plan`, `msmcal session run --operator hook:...`, as
+twin_session_hook_test.py, with fewer poses and triggers; stopped once its session.yaml is
+written: its own solve is not needed) gives step 1 and the background Hall recording. `msmcal
+sweep SWEEP --rig RIG --reference REF --out DIR --mcu TTY --operator hook:...` then runs 2
+points that differ in the fast drive's amplitude: per point the rig check, step 2 with the
+actual Hall recording (nobody at the rig: one hands call puts the twin in the step 2 state),
+the truth request, the solve and the Hall calibration. msmcal (not its watchdog) is SIGKILLed when point 1 reports its first step 2 frame accepted (the progress line:
 no sleep), and the same command is run again.
 
 Checked: a point whose board does not match the reference is refused before anything starts;
@@ -18,8 +19,8 @@ done in summary.csv and in the printed summary table; every point folder is a co
 interchange folder (the reference's step 1 images and hall/background.csv, its own step 2,
 trigger table, hall/actual.csv, results, truth); the truth's trigger table is the point's (every
 scan trigger played again after the resume); per point the solved mirror planes are within
-0.2 deg (normal RMS) of the twin's truth, the solved beams within 0.3 deg (direction) and 1 mm
-(point, across the beam) of the truth's, and the two points' true planes differ (each truth is
+0.03 deg (normal RMS: the demo's order, README 0.0016 deg) of the twin's truth, the solved
+beams within 0.05 deg (direction) and 0.2 mm (point, across the beam) of the truth's, and the two points' true planes differ (each truth is
 its own point's drive). The Hall figures against truth are printed, not asserted (the Hall time
 offset on the twin is worked on separately).
 Runs in its own network namespace (ports 15025/15026, GigE Vision 3956).
@@ -47,8 +48,10 @@ def make_rig(source, tmp):
     text = open(os.path.join(source, "config", "rig.yaml")).read()
     # The rig file's camera (the gate is tuned for its ~20 px squares), short Hall recordings,
     # 4 poses with one exposure per step 1 frame, fewer triggers and step 2 frames.
-    for a, b in [("device: /dev/ttyACM0", "device: " + os.path.join(tmp, "tty")),
-                 ("stall_timeout_ms: 500", "stall_timeout_ms: 2000"),  # a loaded machine
+    # The rig file keeps the lab's hall_mcu.device (/dev/ttyACM0): the twin links its pty
+    # elsewhere (--hall-link) and the session and the sweep are given it (--mcu), as the
+    # README's "Running your rig" does.
+    for a, b in [("stall_timeout_ms: 500", "stall_timeout_ms: 2000"),  # a loaded machine
                  ("hall_background_s: 12", "hall_background_s: 1"),
                  ("hall_actual_min_s: 15", "hall_actual_min_s: 1"),
                  ("  poses: 7", "  poses: 4"),
@@ -65,12 +68,13 @@ def make_rig(source, tmp):
     return rig
 
 
-def start_twin(msmcal, rig, sock, log_file):
+def start_twin(msmcal, rig, sock, tty, log_file):
     # No --exposure: the twin integrates the exposure the session sets on the camera. Its output
     # goes to a file: a pipe nobody reads would block the twin once full (it logs the killed
     # client's broken links).
     log = open(log_file, "w")
-    twin = subprocess.Popen([msmcal, "mock", "rig", "--rig", rig, "--hands", sock],
+    twin = subprocess.Popen([msmcal, "mock", "rig", "--rig", rig, "--hands", sock,
+                             "--hall-link", tty],
                             stdout=log, stderr=subprocess.STDOUT)
     log.close()
     deadline = time.monotonic() + 60
@@ -150,8 +154,10 @@ def check_point(folder, reference):
         fail("%s: only %d of the truth's %d planes solved" % (name, len(errors),
                                                               len(truth_planes)))
     rms = (sum(e * e for e in errors) / len(errors)) ** 0.5
-    if rms > 0.2:
-        fail("%s: plane normal RMS vs truth %.3f deg > 0.2 deg" % (name, rms))
+    # The demo's accuracy order (README "Figures": 0.0016 deg RMS); this small reference (4
+    # poses, one exposure each) gave 0.003-0.009 deg per point.
+    if rms > 0.03:
+        fail("%s: plane normal RMS vs truth %.4f deg > 0.03 deg" % (name, rms))
     true_beams = beams(os.path.join(folder, "truth", "beams.csv"))
     solved_beams = beams(os.path.join(folder, "results", "beams.csv"))
     worst_dir, worst_off = 0.0, 0.0
@@ -168,8 +174,8 @@ def check_point(folder, reference):
         worst_dir, worst_off = max(worst_dir, d), max(worst_off, off)
     if len(solved_beams) < 2:
         fail("%s: %d beams solved" % (name, len(solved_beams)))
-    if worst_dir > 0.3 or worst_off > 1.0:
-        fail("%s: beams vs truth: direction %.3f deg (> 0.3), %.3f mm across (> 1)" %
+    if worst_dir > 0.05 or worst_off > 0.2:  # seen: 0.008 deg, 0.021 mm
+        fail("%s: beams vs truth: direction %.3f deg (> 0.05), %.3f mm across (> 0.2)" %
              (name, worst_dir, worst_off))
     return truth_planes, "%s: %d planes, normal RMS vs truth %.4f deg (max %.4f); beams within " \
         "%.3f deg, %.3f mm" % (name, len(errors), rms, max(errors), worst_dir, worst_off)
@@ -180,6 +186,7 @@ def main():
     t0 = time.monotonic()
     tmp = tempfile.mkdtemp(prefix="twin_rig_sweep_")
     sock = os.path.join(tmp, "hands.sock")
+    tty = os.path.join(tmp, "tty")
     rig = make_rig(source, tmp)
     hook = "hook:%s mock hands --socket %s" % (msmcal, sock)
     plan = os.path.join(tmp, "plan")
@@ -196,16 +203,16 @@ def main():
     out = os.path.join(tmp, "sweep")
     ref = os.path.join(tmp, "reference")
     cmd = [msmcal, "sweep", sweep, "--rig", rig, "--reference", ref, "--out", out,
-           "--operator", hook]
+           "--mcu", tty, "--operator", hook]
 
     twin_log = os.path.join(tmp, "twin.log")
-    twin = start_twin(msmcal, rig, sock, twin_log)
+    twin = start_twin(msmcal, rig, sock, tty, twin_log)
     try:
         # The reference is complete once its session.yaml is written (outputs off, confirmed);
         # its own solve is not needed here, so it is stopped there.
         child = subprocess.Popen([msmcal, "session", "run", "--rig", rig, "--plan", plan,
-                                  "--out", ref, "--operator", hook], stdout=subprocess.PIPE,
-                                 stderr=subprocess.STDOUT, text=True)
+                                  "--out", ref, "--mcu", tty, "--operator", hook],
+                                 stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
         ref_log = []
         for line in child.stdout:
             ref_log.append(line)

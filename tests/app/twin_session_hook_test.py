@@ -12,9 +12,10 @@ trigger table is the plan's (what the orchestrator uploaded, decoded from the ar
 Step 2 (per-frame signals, docs/lab-path.md): every step 2 frame accepted (the gate counts the frame's
 own dots: the orchestrator plays each frame's drives and triggers), the twin integrating the
 camera's own exposure (the rig file's camera.exposure_us, set through GenICam ExposureTime);
-`msmcal solve` on the session folder solves, and its mirror planes are within 0.2 deg (normal)
-of the twin's truth, matched by trigger time. `msmcal hall calibrate` on the solved folder uses
-only the actual recording's pattern periods with both drives running: the neutral and fast-only
+`msmcal solve` on the session folder solves, and its mirror planes are within 0.02 deg (normal
+RMS) of the twin's truth, matched by trigger time: the demo's order (README: 0.0016 deg; this
+session about 0.002 deg). `msmcal hall calibrate` on the solved folder uses only the actual
+recording's pattern periods with both drives running: the neutral and fast-only
 frames' stretches (at least 10 periods here) are left out. Its delta_t is printed against the
 truth, not asserted: with this variant's 26 poses and 1 s background the fit lands on an alias
 near dt +- 1/(2 f_fast) (docs/hall-calibration.md, "What limits dt"; the unit test
@@ -170,8 +171,8 @@ def main():
     if len(errors) < 3:
         fail("only %d of the truth's %d planes solved" % (len(errors), len(true_planes)))
     rms = (sum(e * e for e in errors) / len(errors)) ** 0.5
-    if rms > 0.2:
-        fail("plane normal RMS vs truth %.3f deg (max %.3f) > 0.2 deg" % (rms, max(errors)))
+    if rms > 0.02:  # the demo's accuracy order (README "Figures": 0.0016 deg RMS)
+        fail("plane normal RMS vs truth %.4f deg (max %.4f) > 0.02 deg" % (rms, max(errors)))
     # The Hall calibration on the solved folder: only the periods with both drives running.
     p = subprocess.run([msmcal, "hall", "calibrate", out, "--repetitions", "10"],
                        capture_output=True, text=True, timeout=600)

@@ -443,7 +443,9 @@ struct FakeRig {
       if (unsafe_acquire.count(p.name.substr(0, 4)))
         throw gen::SafeStateNotConfirmed(75, "generator outputs NOT confirmed off");
       if (fail_acquire.count(p.name.substr(0, 4)))
-        throw std::runtime_error("camera: no frame\nsecond line");
+        throw std::runtime_error(  // the orchestrator's rig check: a list of problems
+            "rig check failed, not starting:\n  - Hall MCU: cannot open /dev/ttyACM0\n"
+            "  - camera: no frame");
       WriteText(folder / "session.yaml", "complete");
     };
     h.finish = [this](const SweepPoint& p, const fs::path& folder) -> std::string {
@@ -497,7 +499,10 @@ TEST(SweepRunner, GoesOnAfterAFailureAndResumesWithoutRedoingWork) {
             (std::vector<std::string>{"acquire p001 resume=0", "finish p001",
                                       "acquire p002 resume=0", "acquire p003 resume=0",
                                       "finish p003", "acquire p004 resume=1", "finish p004"}));
-  EXPECT_EQ(first.rows[1].record.reason, "camera: no frame (...)");
+  // The reason names every problem on one line (not just the list's heading).
+  const std::string reason =
+      "rig check failed, not starting: Hall MCU: cannot open /dev/ttyACM0; camera: no frame";
+  EXPECT_EQ(first.rows[1].record.reason, reason);
   EXPECT_EQ(first.rows[2].record.reason, "solve failed");
   EXPECT_EQ(first.rows[0].figures.frames_accepted, 2u);
   EXPECT_DOUBLE_EQ(first.rows[0].record.duration_s, 25.0);
@@ -514,7 +519,7 @@ TEST(SweepRunner, GoesOnAfterAFailureAndResumesWithoutRedoingWork) {
   EXPECT_EQ(rig.printed.back().substr(0, 9), "sweep 4/4");
   EXPECT_NE(rig.printed.back().find("| ETA 0 s"), std::string::npos) << rig.printed.back();
   const std::string csv = ReadText(dir / "summary.csv");
-  EXPECT_NE(csv.find("failed,camera: no frame (...)"), std::string::npos) << csv;
+  EXPECT_NE(csv.find("failed,\"" + reason + "\""), std::string::npos) << csv;
 
   // Second run: done points are skipped, the failed ones continue from what is on disk.
   rig.calls.clear();
