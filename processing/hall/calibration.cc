@@ -84,8 +84,9 @@ Eigen::Vector3d OutputScale(const std::vector<PoseSample>& poses) {
 
 // The session's dt (calibration.h, HallCalibrationResult::delta_t): the best model when it is
 // a field model, else the field model with the lowest normalised test RMS, judged on its cost
-// profile over the whole window, its final fit in `bracketed` and its splits (`first_pass` over
-// the whole window; r.table's over `bracketed` when `bracketed_pass`).
+// profile over the whole window (and half a fast period beyond), its final fit in `bracketed` and
+// its splits (`first_pass` over the whole window; r.table's over `bracketed` when
+// `bracketed_pass`).
 DeltaTEstimate JudgeSessionDeltaT(const HallCalibrationResult& r,
                                   const std::vector<ModelStats>& first_pass,
                                   const HallCalibrationInput& in, const HallFitOptions& window,
@@ -119,7 +120,15 @@ DeltaTEstimate JudgeSessionDeltaT(const HallCalibrationResult& r,
     return e;
   }
   DeltaTEvidence ev;
-  ev.profile = ProfileDeltaT(source->kind, in.poses, f_all, window);
+  HallFitOptions widened = window;  // half a fast period beyond each bound: the next valley
+  if (in.fast_frequency_hz > 0) {
+    const double steps = std::ceil(0.5 / in.fast_frequency_hz / window.grid_step_s - 1e-9);
+    widened.delta_t_min_s -= steps * window.grid_step_s;
+    widened.delta_t_max_s += steps * window.grid_step_s;
+  }
+  ev.profile = ProfileDeltaT(source->kind, in.poses, f_all, widened);
+  ev.search_min_s = window.delta_t_min_s;
+  ev.search_max_s = window.delta_t_max_s;
   ev.final_delta_t_s = source->kind == r.final_fit.model.kind
                            ? r.final_fit.model.delta_t_s
                            : FitHallModel(source->kind, in.poses, f_all, bracketed).model.delta_t_s;

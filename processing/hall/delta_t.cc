@@ -16,6 +16,8 @@ std::string DeltaTIdentificationOptions::Validate() const {
     s << "min_split_agreement must be in [0, 1], got " << min_split_agreement;
   else if (!(min_separation >= 0))
     s << "min_separation must be >= 0, got " << min_separation;
+  else if (!(max_sigma_s > 0))
+    s << "max_sigma_s must be > 0, got " << max_sigma_s;
   return s.str();
 }
 
@@ -31,6 +33,8 @@ const char* ToString(DeltaTStatus status) {
       return "at a bound";
     case DeltaTStatus::kSplitsDisagree:
       return "splits disagree";
+    case DeltaTStatus::kImprecise:
+      return "imprecise";
     case DeltaTStatus::kAmbiguous:
       return "ambiguous";
   }
@@ -40,7 +44,8 @@ const char* ToString(DeltaTStatus status) {
 bool ParseDeltaTStatus(const std::string& text, DeltaTStatus* status) {
   for (DeltaTStatus s :
        {DeltaTStatus::kIdentified, DeltaTStatus::kNoFastDrive, DeltaTStatus::kNoFieldModel,
-        DeltaTStatus::kAtBound, DeltaTStatus::kSplitsDisagree, DeltaTStatus::kAmbiguous})
+        DeltaTStatus::kAtBound, DeltaTStatus::kSplitsDisagree, DeltaTStatus::kImprecise,
+        DeltaTStatus::kAmbiguous})
     if (text == ToString(s)) {
       *status = s;
       return true;
@@ -75,8 +80,8 @@ DeltaTEstimate IdentifyDeltaT(const DeltaTEvidence& e, const DeltaTIdentificatio
   DeltaTEstimate r;
   r.model = p.kind;
   r.delta_t_s = e.final_delta_t_s;
-  r.search_min_s = p.dt_s.front();
-  r.search_max_s = p.dt_s.back();
+  r.search_min_s = e.search_min_s;
+  r.search_max_s = e.search_max_s;
   r.bracket_min_s = e.bracket_min_s;
   r.bracket_max_s = e.bracket_max_s;
   const size_t n = p.cost.size();
@@ -120,9 +125,12 @@ DeltaTEstimate IdentifyDeltaT(const DeltaTEvidence& e, const DeltaTIdentificatio
   // 2. Inside the window and the bracket, and the final fit in the profile's valley.
   if (r.profile_min_s <= r.search_min_s + edge || r.profile_min_s >= r.search_max_s - edge) {
     r.status = DeltaTStatus::kAtBound;
-    r.reason = "the cost falls towards the search window's bound (minimum at " +
-               Ms(r.profile_min_s) + ", window " + Ms(r.search_min_s) + " .. " +
-               Ms(r.search_max_s) + "): the true dt may lie beyond it";
+    const bool outside = r.profile_min_s < r.search_min_s || r.profile_min_s > r.search_max_s;
+    r.reason =
+        std::string(outside ? "the cost is lowest beyond the search window's bound, at "
+                            : "the cost falls towards the search window's bound, minimum at ") +
+        Ms(r.profile_min_s) + " (window " + Ms(r.search_min_s) + " .. " + Ms(r.search_max_s) +
+        "): the true dt may lie beyond it";
     return r;
   }
   if (e.final_delta_t_s <= e.bracket_min_s + edge || e.final_delta_t_s >= e.bracket_max_s - edge) {
@@ -147,7 +155,14 @@ DeltaTEstimate IdentifyDeltaT(const DeltaTEvidence& e, const DeltaTIdentificatio
                "): the data do not choose between the fast drive's valleys";
     return r;
   }
-  // 4. No other valley nearly as deep.
+  // 4. The splits agree closely.
+  if (!(r.sigma_s <= o.max_sigma_s)) {
+    r.status = DeltaTStatus::kImprecise;
+    r.reason = "the train/test splits' dt scatters by " + Ms(r.sigma_s) + " (at most " +
+               Ms(o.max_sigma_s) + "): too few poses or readings to pin dt down";
+    return r;
+  }
+  // 5. No other valley nearly as deep.
   if (r.separation < o.min_separation) {
     char buf[64], need[32];
     std::snprintf(buf, sizeof buf, "%.1f", r.separation);

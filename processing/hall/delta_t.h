@@ -21,10 +21,15 @@
 //  1. the fast drive frequency is known (the window's quarter-period bracket needs it);
 //  2. the profile's minimum lies inside the window and inside the bracket the final fit searched
 //     (not within edge_steps grid steps of either's bound: a minimum at a bound says the true
-//     dt may lie beyond it);
+//     dt may lie beyond it). The profile reaches half a fast period beyond the window's bounds,
+//     so a deeper valley just outside the window (the true dt, when the window holds only its
+//     alias) is seen;
 //  3. the splits agree: at least min_split_agreement of them find dt within an eighth of a fast
 //     period of the minimum (a split in another valley means the data do not choose);
-//  4. the minimum is unique: every other valley of the profile (its local minima more than an
+//  4. the splits in that valley agree closely: their standard deviation is at most max_sigma_s
+//     (a short recording's splits scatter by 0.15 ms around a minimum that is itself 0.07 ms
+//     off; full-size recordings scatter by 2-8 us);
+//  5. the minimum is unique: every other valley of the profile (its local minima more than an
 //     eighth of a fast period away, the window's ends included) costs at least min_separation
 //     residual variances more: (J_other - J_min) / (J_min / dof) >= min_separation.
 // Otherwise the estimate says which test failed and why, and dt is not the session's.
@@ -41,6 +46,7 @@ struct DeltaTIdentificationOptions {
   int edge_steps = 2;                // grid steps the minimum must keep from a bound
   double min_split_agreement = 0.9;  // fraction of the splits in the minimum's valley
   double min_separation = 25;        // residual variances between the minimum and any other
+  double max_sigma_s = 25e-6;        // the splits\' spread in the minimum\'s valley
   std::string Validate() const;
 };
 
@@ -50,10 +56,11 @@ enum class DeltaTStatus {
   kNoFieldModel,    // only the sine model was fitted
   kAtBound,         // the minimum lies at the search window's or the bracket's bound
   kSplitsDisagree,  // the protocol's splits find dt in different valleys
+  kImprecise,       // the splits in the minimum\'s valley scatter by more than max_sigma_s
   kAmbiguous,       // another valley costs nearly as little
 };
 // "identified" | "no fast drive" | "no field model" | "at a bound" | "splits disagree" |
-// "ambiguous".
+// "imprecise" | "ambiguous".
 const char* ToString(DeltaTStatus status);
 bool ParseDeltaTStatus(const std::string& text, DeltaTStatus* status);
 
@@ -69,13 +76,16 @@ struct DeltaTEstimate {
   double runner_up_s = std::numeric_limits<double>::quiet_NaN();
   double separation = std::numeric_limits<double>::quiet_NaN();
   int splits = 0, splits_agreeing = 0;          // of the first pass, in the minimum's valley
-  double search_min_s = 0, search_max_s = 0;    // the whole window profiled
+  double search_min_s = 0, search_max_s = 0;    // the search window
   double bracket_min_s = 0, bracket_max_s = 0;  // the window the final fit searched
   std::string reason;                           // why not identified ("" when identified)
 };
 
 struct DeltaTEvidence {
-  DeltaTProfile profile;                          // over the whole search window, every pose
+  // Over the search window widened by half a fast period on each side (the next valley beyond a
+  // bound is seen), every pose.
+  DeltaTProfile profile;
+  double search_min_s = 0, search_max_s = 0;      // the search window (HallCalibrationOptions)
   double final_delta_t_s = 0;                     // the model's final fit (every pose, the bracket)
   double bracket_min_s = 0, bracket_max_s = 0;    // the final fit's window
   std::vector<double> split_delta_t_s;            // first pass: the whole window
