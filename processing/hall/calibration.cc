@@ -11,14 +11,22 @@ namespace msmcal::hall {
 
 std::string HallCalibrationOptions::Validate() const {
   std::ostringstream s;
-  if (const std::string e = time_base.Validate(); !e.empty()) s << "time_base: " << e;
+  if (const std::string e = time_base.Validate(); !e.empty())
+    s << "time_base: " << e;
   else if (const std::string d = driven_periods.Validate(); !d.empty())
     s << "driven_periods: " << d;
-  else if (const std::string p = profile.Validate(); !p.empty()) s << "profile: " << p;
-  else if (!(delta_t_max_s > delta_t_min_s)) s << "delta_t window must satisfy max > min";
-  else if (repetitions < 1) s << "repetitions must be >= 1, got " << repetitions;
-  else if (!(train_fraction > 0 && train_fraction < 1)) s << "train_fraction must be in (0, 1), got " << train_fraction;
-  else if (models.empty()) s << "models must not be empty";
+  else if (const std::string p = profile.Validate(); !p.empty())
+    s << "profile: " << p;
+  else if (const std::string d = delta_t.Validate(); !d.empty())
+    s << "delta_t: " << d;
+  else if (!(delta_t_max_s > delta_t_min_s))
+    s << "delta_t window must satisfy max > min";
+  else if (repetitions < 1)
+    s << "repetitions must be >= 1, got " << repetitions;
+  else if (!(train_fraction > 0 && train_fraction < 1))
+    s << "train_fraction must be in (0, 1), got " << train_fraction;
+  else if (models.empty())
+    s << "models must not be empty";
   return s.str();
 }
 
@@ -56,7 +64,8 @@ void SplitReadings(const Mapped& all, double train, std::mt19937_64& rng, Mapped
   }
 }
 
-Foreground MakeForeground(const Mapped& actual, const Mapped& background, double period, const PhaseProfileOptions& o) {
+Foreground MakeForeground(const Mapped& actual, const Mapped& background, double period,
+                          const PhaseProfileOptions& o) {
   Foreground f;
   f.actual = PhaseProfile::Build(actual.t, actual.b, period, o);
   f.background = PhaseProfile::Build(background.t, background.b, period, o);
@@ -73,13 +82,79 @@ Eigen::Vector3d OutputScale(const std::vector<PoseSample>& poses) {
   return (ss / poses.size()).cwiseSqrt().cwiseMax(1e-12);
 }
 
+// The session's dt (calibration.h, HallCalibrationResult::delta_t): the best model when it is
+// a field model, else the field model with the lowest normalised test RMS, judged on its cost
+// profile over the whole window (and half a fast period beyond), its final fit in `bracketed` and
+// its splits (`first_pass` over the whole window; r.table's over `bracketed` when
+// `bracketed_pass`).
+DeltaTEstimate JudgeSessionDeltaT(const HallCalibrationResult& r,
+                                  const std::vector<ModelStats>& first_pass,
+                                  const HallCalibrationInput& in, const HallFitOptions& window,
+                                  const HallFitOptions& bracketed, const FieldFunction& f_all,
+                                  bool bracketed_pass, const Eigen::Vector3d& scale,
+                                  const DeltaTIdentificationOptions& options) {
+  const ModelStats* source = nullptr;
+  for (const auto& s : r.table)
+    if (s.kind == r.best && s.kind != HallModelKind::kSine) source = &s;
+  double best_score = 0;
+  for (const auto& s : r.table) {
+    if (source && source->kind == r.best) break;
+    const double score = s.test_rms_mean.cwiseQuotient(scale).squaredNorm();
+    if (s.kind != HallModelKind::kSine && (!source || score < best_score)) {
+      source = &s;
+      best_score = score;
+    }
+  }
+  if (!source) {
+    DeltaTEstimate e;
+    e.status = DeltaTStatus::kNoFieldModel;
+    e.model = r.best;
+    e.delta_t_s = r.final_fit.model.delta_t_s;
+    e.search_min_s = window.delta_t_min_s;
+    e.search_max_s = window.delta_t_max_s;
+    e.bracket_min_s = bracketed.delta_t_min_s;
+    e.bracket_max_s = bracketed.delta_t_max_s;
+    e.reason =
+        "only the sine model was fitted: its dt aligns the field's phase with the poses', not "
+        "the clocks";
+    return e;
+  }
+  DeltaTEvidence ev;
+  HallFitOptions widened = window;  // half a fast period beyond each bound: the next valley
+  if (in.fast_frequency_hz > 0) {
+    const double steps = std::ceil(0.5 / in.fast_frequency_hz / window.grid_step_s - 1e-9);
+    widened.delta_t_min_s -= steps * window.grid_step_s;
+    widened.delta_t_max_s += steps * window.grid_step_s;
+  }
+  ev.profile = ProfileDeltaT(source->kind, in.poses, f_all, widened);
+  ev.search_min_s = window.delta_t_min_s;
+  ev.search_max_s = window.delta_t_max_s;
+  ev.final_delta_t_s = source->kind == r.final_fit.model.kind
+                           ? r.final_fit.model.delta_t_s
+                           : FitHallModel(source->kind, in.poses, f_all, bracketed).model.delta_t_s;
+  ev.bracket_min_s = bracketed.delta_t_min_s;
+  ev.bracket_max_s = bracketed.delta_t_max_s;
+  for (const auto& s : first_pass)
+    if (s.kind == source->kind) ev.split_delta_t_s = s.split_delta_t_s;
+  if (bracketed_pass) ev.bracketed_split_delta_t_s = source->split_delta_t_s;
+  ev.fast_frequency_hz = in.fast_frequency_hz;
+  return IdentifyDeltaT(ev, options);
+}
+
 }  // namespace
 
-HallCalibrationResult CalibrateHall(const HallCalibrationInput& in, const HallCalibrationOptions& o) {
-  if (const std::string e = o.Validate(); !e.empty()) throw std::invalid_argument("HallCalibrationOptions: " + e);
-  if (!in.actual || !in.background) throw std::invalid_argument("CalibrateHall: needs both hall/actual.csv and hall/background.csv");
-  if (!(in.pattern_period_s > 0)) throw std::invalid_argument("CalibrateHall: drive.pattern_period_s must be > 0");
-  if (in.poses.size() < 12) throw std::invalid_argument("CalibrateHall: needs at least 12 mirror poses, got " + std::to_string(in.poses.size()));
+HallCalibrationResult CalibrateHall(const HallCalibrationInput& in,
+                                    const HallCalibrationOptions& o) {
+  if (const std::string e = o.Validate(); !e.empty())
+    throw std::invalid_argument("HallCalibrationOptions: " + e);
+  if (!in.actual || !in.background)
+    throw std::invalid_argument(
+        "CalibrateHall: needs both hall/actual.csv and hall/background.csv");
+  if (!(in.pattern_period_s > 0))
+    throw std::invalid_argument("CalibrateHall: drive.pattern_period_s must be > 0");
+  if (in.poses.size() < 12)
+    throw std::invalid_argument("CalibrateHall: needs at least 12 mirror poses, got " +
+                                std::to_string(in.poses.size()));
   HallCalibrationResult r;
   try {
     r.actual_time_base = FitTimeBase(in.actual->clock_edges_us, in.pattern_period_s, o.time_base);
@@ -87,7 +162,8 @@ HallCalibrationResult CalibrateHall(const HallCalibrationInput& in, const HallCa
     throw std::invalid_argument(std::string("hall/actual_clock.csv: ") + e.what());
   }
   try {
-    r.background_time_base = FitTimeBase(in.background->clock_edges_us, in.pattern_period_s, o.time_base);
+    r.background_time_base =
+        FitTimeBase(in.background->clock_edges_us, in.pattern_period_s, o.time_base);
   } catch (const std::invalid_argument& e) {
     throw std::invalid_argument(std::string("hall/background_clock.csv: ") + e.what());
   }
@@ -129,7 +205,8 @@ HallCalibrationResult CalibrateHall(const HallCalibrationInput& in, const HallCa
   const Eigen::Vector3d scale = OutputScale(in.poses);
   std::mt19937_64 rng(o.seed);
   const size_t n = in.poses.size();
-  const size_t n_train = std::clamp<size_t>(static_cast<size_t>(std::lround(o.train_fraction * n)), 1, n - 1);
+  const size_t n_train =
+      std::clamp<size_t>(static_cast<size_t>(std::lround(o.train_fraction * n)), 1, n - 1);
   // The splits (poses and the foregrounds of their readings), kept for a second pass of fits.
   struct Split {
     std::vector<PoseSample> train, test;
@@ -141,7 +218,8 @@ HallCalibrationResult CalibrateHall(const HallCalibrationInput& in, const HallCa
   for (int rep = 0; rep < o.repetitions; ++rep) {
     std::vector<size_t> idx(n);
     std::iota(idx.begin(), idx.end(), 0);
-    for (size_t i = n - 1; i > 0; --i) std::swap(idx[i], idx[static_cast<size_t>(Uniform(rng) * (i + 1))]);
+    for (size_t i = n - 1; i > 0; --i)
+      std::swap(idx[i], idx[static_cast<size_t>(Uniform(rng) * (i + 1))]);
     Split sp;
     for (size_t i = 0; i < n; ++i) (i < n_train ? sp.train : sp.test).push_back(in.poses[idx[i]]);
     SplitReadings(actual, o.train_fraction, rng, &a_train, &a_test);
@@ -167,7 +245,8 @@ HallCalibrationResult CalibrateHall(const HallCalibrationInput& in, const HallCa
           // Too many parameters for a training split: the comparison goes on without the model.
           usable[m] = false;
           r.skipped_models.push_back(std::string(ToString(o.models[m])) + ": " + e.what() + " (" +
-                                     std::to_string(sp.train.size()) + " poses per training split)");
+                                     std::to_string(sp.train.size()) +
+                                     " poses per training split)");
           continue;
         }
         train_rms[m].push_back(fitted.train_rms);
@@ -180,8 +259,8 @@ HallCalibrationResult CalibrateHall(const HallCalibrationInput& in, const HallCa
     if (std::none_of(usable.begin(), usable.end(), [](bool u) { return u; })) {
       std::string why;
       for (const auto& s : r.skipped_models) why += "; " + s;
-      throw std::invalid_argument("CalibrateHall: no model can be fitted with " + std::to_string(n) +
-                                  " mirror poses" + why);
+      throw std::invalid_argument("CalibrateHall: no model can be fitted with " +
+                                  std::to_string(n) + " mirror poses" + why);
     }
     r.table.clear();
     double best_score = 1e300;
@@ -195,6 +274,7 @@ HallCalibrationResult CalibrateHall(const HallCalibrationInput& in, const HallCa
         s.train_rms_mean += train_rms[m][k] / reps;
         s.delta_t_mean_s += dts[m][k] / reps;
       }
+      s.split_delta_t_s = dts[m];
       for (int k = 0; k < o.repetitions; ++k) {
         s.test_rms_std += (test_rms[m][k] - s.test_rms_mean).cwiseAbs2() / reps;
         s.delta_t_std_s += (dts[m][k] - s.delta_t_mean_s) * (dts[m][k] - s.delta_t_mean_s) / reps;
@@ -210,11 +290,13 @@ HallCalibrationResult CalibrateHall(const HallCalibrationInput& in, const HallCa
     }
   };
   compare(fit, /*progress=*/true);
+  const std::vector<ModelStats> first_pass = r.table;
   // The fast axis is nearly a sine: half its period away, dt has an alias that a field model
   // matches by flipping its coefficients. The field model whose dt varies least over the splits
   // (the sine model's dt is not identifiable) brackets dt to within a quarter of the fast period
   // of its mean, for the splits (a second pass) and the final fit.
   HallFitOptions bracketed = fit;
+  bool bracketed_pass = false;
   const ModelStats* steady = nullptr;
   for (const auto& s : r.table)
     if (s.kind != HallModelKind::kSine && (!steady || s.delta_t_std_s < steady->delta_t_std_s))
@@ -225,21 +307,26 @@ HallCalibrationResult CalibrateHall(const HallCalibrationInput& in, const HallCa
       bracketed.delta_t_min_s = std::max(fit.delta_t_min_s, steady->delta_t_mean_s - quarter);
       bracketed.delta_t_max_s = std::min(fit.delta_t_max_s, steady->delta_t_mean_s + quarter);
       compare(bracketed, /*progress=*/false);
+      bracketed_pass = true;
     }
   }
   r.foreground = MakeForeground(actual, background, in.pattern_period_s, profile);
   const FieldFunction f_all = [&](double t) { return r.foreground.Value(t); };
   r.final_fit = FitHallModel(r.best, in.poses, f_all, bracketed);
+  r.delta_t = JudgeSessionDeltaT(r, first_pass, in, fit, bracketed, f_all, bracketed_pass, scale,
+                                 o.delta_t);
   return r;
 }
 
-HallPredictor::HallPredictor(HallModel model, PhaseProfile background, Eigen::Vector3d actual_mean_uT)
+HallPredictor::HallPredictor(HallModel model, PhaseProfile background,
+                             Eigen::Vector3d actual_mean_uT)
     : model_(std::move(model)), background_(std::move(background)), actual_mean_(actual_mean_uT) {
   if (background_.empty()) throw std::invalid_argument("HallPredictor: empty background profile");
   offset_ = actual_mean_ - background_.Mean();
   features_ = model_.FeatureCount();
   if (model_.a.rows() != 3 || model_.a.cols() != features_)
-    throw std::invalid_argument("HallPredictor: parameter matrix must be 3 x " + std::to_string(features_));
+    throw std::invalid_argument("HallPredictor: parameter matrix must be 3 x " +
+                                std::to_string(features_));
   for (int r = 0; r < 3; ++r)
     for (int k = 0; k < features_; ++k) a_[r][k] = model_.a(r, k);
 }
@@ -254,7 +341,8 @@ Eigen::Vector3d HallPredictor::Predict(double t_s, const Eigen::Vector3d& raw) c
   return {out[0], out[1], out[2]};
 }
 
-void HallPredictor::PredictBatch(const double* t_s, const Eigen::Vector3d* raw, Eigen::Vector3d* pose, size_t n) const {
+void HallPredictor::PredictBatch(const double* t_s, const Eigen::Vector3d* raw,
+                                 Eigen::Vector3d* pose, size_t n) const {
   for (size_t i = 0; i < n; ++i) pose[i] = Predict(t_s[i], raw[i]);
 }
 

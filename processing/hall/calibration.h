@@ -12,6 +12,9 @@
 // 3. Models with dt (hall_model.h), evaluated by random 4:1 train/test splits of the poses,
 //    repeated, with the Hall readings also split 4:1 and profiled separately for training and
 //    testing (so a test pose is never predicted from readings the training saw).
+// 4. dt: whether the recording determines it (delta_t.h), judged on a field model's cost profile
+//    and splits; the chosen model's own dt is the session's only when it is a field model and
+//    the recording determines it.
 
 #include <Eigen/Core>
 #include <cstdint>
@@ -20,6 +23,7 @@
 #include <vector>
 
 #include "processing/dataset/recording.h"
+#include "processing/hall/delta_t.h"
 #include "processing/hall/driven_periods.h"
 #include "processing/hall/hall_model.h"
 #include "processing/hall/phase_profile.h"
@@ -33,20 +37,22 @@ struct HallCalibrationInput {
   double pattern_period_s = 0;
   double fast_frequency_hz = 0;
   double slow_frequency_hz = 0;
-  std::vector<PoseSample> poses;  // one per trigger: t_s in the pattern, (alpha_deg, beta_deg, trans_mm)
+  std::vector<PoseSample>
+      poses;  // one per trigger: t_s in the pattern, (alpha_deg, beta_deg, trans_mm)
 };
 
 struct HallCalibrationOptions {
   TimeBaseOptions time_base;
   DrivenPeriodOptions driven_periods;  // which periods of the actual recording are the scan
   PhaseProfileOptions profile;
+  DeltaTIdentificationOptions delta_t;  // when dt counts as determined by the recording
   double delta_t_min_s = -0.01;
   double delta_t_max_s = 0.01;
   int repetitions = 50;
   double train_fraction = 0.8;
   uint64_t seed = 1;
-  std::vector<HallModelKind> models = {HallModelKind::kLinear, HallModelKind::kSine, HallModelKind::kQuadratic,
-                                       HallModelKind::kCubic};
+  std::vector<HallModelKind> models = {HallModelKind::kLinear, HallModelKind::kSine,
+                                       HallModelKind::kQuadratic, HallModelKind::kCubic};
   // Optional, called after each repetition (progress lines): repetitions done and the total.
   std::function<void(int done, int total)> on_repetition;
   std::string Validate() const;
@@ -69,6 +75,7 @@ struct ModelStats {
   Eigen::Vector3d train_rms_mean = Eigen::Vector3d::Zero();
   double delta_t_mean_s = 0;
   double delta_t_std_s = 0;
+  std::vector<double> split_delta_t_s;  // one per repetition
 };
 
 struct HallCalibrationResult {
@@ -84,10 +91,16 @@ struct HallCalibrationResult {
   HallModelKind best = HallModelKind::kLinear;  // lowest mean test RMS (normalised per output)
   HallFitResult final_fit;                      // best model refitted on every pose and reading
   Foreground foreground;                        // from every reading
+  // The session's dt: a field model's, judged by IdentifyDeltaT (the best model when it is a
+  // field model, else the best field model). final_fit.model.delta_t_s is the chosen model's
+  // own parameter (what the predictor uses); it is the session's dt only when
+  // delta_t.identified() and delta_t.model == final_fit.model.kind.
+  DeltaTEstimate delta_t;
 };
 
 // Throws std::invalid_argument naming what is missing or inconsistent.
-HallCalibrationResult CalibrateHall(const HallCalibrationInput& input, const HallCalibrationOptions& options);
+HallCalibrationResult CalibrateHall(const HallCalibrationInput& input,
+                                    const HallCalibrationOptions& options);
 
 // Readings of one recording as (generator time, field) through a time base.
 void MapReadings(const dataset::HallRecording& rec, const TimeBase& tb, std::vector<double>* t_s,
@@ -100,7 +113,8 @@ class HallPredictor {
   // Pose (alpha_deg, beta_deg, trans_mm) at generator time t_s - delta_t of a raw reading taken
   // at generator time t_s.
   Eigen::Vector3d Predict(double t_s, const Eigen::Vector3d& raw_uT) const;
-  void PredictBatch(const double* t_s, const Eigen::Vector3d* raw_uT, Eigen::Vector3d* pose, size_t n) const;
+  void PredictBatch(const double* t_s, const Eigen::Vector3d* raw_uT, Eigen::Vector3d* pose,
+                    size_t n) const;
   const HallModel& model() const { return model_; }
   const PhaseProfile& background() const { return background_; }
   const Eigen::Vector3d& actual_mean_uT() const { return actual_mean_; }
@@ -111,7 +125,7 @@ class HallPredictor {
   Eigen::Vector3d actual_mean_;
   Eigen::Vector3d offset_;  // actual_mean - background mean
   int features_ = 0;
-  double a_[3][20] = {};    // model.a, row-major, for a tight inner loop
+  double a_[3][20] = {};  // model.a, row-major, for a tight inner loop
 };
 
 }  // namespace msmcal::hall

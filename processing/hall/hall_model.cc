@@ -23,7 +23,8 @@ const char* ToString(HallModelKind kind) {
 }
 
 bool ParseHallModelKind(const std::string& text, HallModelKind* kind) {
-  for (HallModelKind k : {HallModelKind::kLinear, HallModelKind::kSine, HallModelKind::kQuadratic, HallModelKind::kCubic})
+  for (HallModelKind k : {HallModelKind::kLinear, HallModelKind::kSine, HallModelKind::kQuadratic,
+                          HallModelKind::kCubic})
     if (text == ToString(k)) {
       *kind = k;
       return true;
@@ -53,7 +54,8 @@ void HallModel::Features(const Eigen::Vector3d& b, double tau, double* out) cons
       out[3] = 1.0;
       return;
     case HallModelKind::kSine:
-      for (int k = 0; k < 3; ++k) out[k] = std::sin(2 * M_PI * sine_frequency_hz[k] * tau + sine_phase_rad[k]);
+      for (int k = 0; k < 3; ++k)
+        out[k] = std::sin(2 * M_PI * sine_frequency_hz[k] * tau + sine_phase_rad[k]);
       out[3] = 1.0;
       return;
     case HallModelKind::kQuadratic:
@@ -89,10 +91,15 @@ Eigen::Vector3d HallModel::Predict(const Eigen::Vector3d& b, double tau) const {
 
 std::string HallFitOptions::Validate(HallModelKind kind) const {
   std::ostringstream s;
-  if (!(delta_t_max_s > delta_t_min_s)) s << "delta_t window must satisfy max > min, got [" << delta_t_min_s << ", " << delta_t_max_s << "]";
-  else if (!(grid_step_s > 0)) s << "grid_step_s must be > 0, got " << grid_step_s;
-  else if (!(tolerance_s > 0)) s << "tolerance_s must be > 0, got " << tolerance_s;
-  else if (kind == HallModelKind::kSine && !(fast_frequency_hz > 0 && slow_frequency_hz > 0 && pattern_period_s > 0))
+  if (!(delta_t_max_s > delta_t_min_s))
+    s << "delta_t window must satisfy max > min, got [" << delta_t_min_s << ", " << delta_t_max_s
+      << "]";
+  else if (!(grid_step_s > 0))
+    s << "grid_step_s must be > 0, got " << grid_step_s;
+  else if (!(tolerance_s > 0))
+    s << "tolerance_s must be > 0, got " << tolerance_s;
+  else if (kind == HallModelKind::kSine &&
+           !(fast_frequency_hz > 0 && slow_frequency_hz > 0 && pattern_period_s > 0))
     s << "sine model needs fast_frequency_hz, slow_frequency_hz and pattern_period_s > 0";
   return s.str();
 }
@@ -100,7 +107,8 @@ std::string HallFitOptions::Validate(HallModelKind kind) const {
 namespace {
 
 // Solves A for fixed dt; returns the cost.
-double SolveForDelta(HallModel* model, const std::vector<PoseSample>& samples, const FieldFunction& fg) {
+double SolveForDelta(HallModel* model, const std::vector<PoseSample>& samples,
+                     const FieldFunction& fg) {
   const int n = model->FeatureCount();
   Eigen::MatrixXd ata = Eigen::MatrixXd::Zero(n, n);
   Eigen::MatrixXd aty = Eigen::MatrixXd::Zero(n, 3);
@@ -120,7 +128,8 @@ double SolveForDelta(HallModel* model, const std::vector<PoseSample>& samples, c
   ata.diagonal().array() += ridge;
   model->a = ata.ldlt().solve(aty).transpose();
   double cost = 0;
-  for (size_t i = 0; i < samples.size(); ++i) cost += (model->a * feats[i] - samples[i].pose).squaredNorm();
+  for (size_t i = 0; i < samples.size(); ++i)
+    cost += (model->a * feats[i] - samples[i].pose).squaredNorm();
   return cost;
 }
 
@@ -148,29 +157,62 @@ void MeasureSinePhases(const FieldFunction& fg, const HallFitOptions& o, HallMod
   }
 }
 
-}  // namespace
-
-HallFitResult FitHallModel(HallModelKind kind, const std::vector<PoseSample>& samples,
-                           const FieldFunction& fg, const HallFitOptions& o) {
-  if (const std::string e = o.Validate(kind); !e.empty()) throw std::invalid_argument("HallFitOptions: " + e);
+// The model of `kind` with what does not depend on dt set up (field scale, sine phases).
+HallModel SetUpModel(HallModelKind kind, const std::vector<PoseSample>& samples,
+                     const FieldFunction& fg, const HallFitOptions& o) {
+  if (const std::string e = o.Validate(kind); !e.empty())
+    throw std::invalid_argument("HallFitOptions: " + e);
   HallModel model;
   model.kind = kind;
   if (static_cast<int>(samples.size()) <= model.FeatureCount())
-    throw std::invalid_argument(std::string("FitHallModel: the ") + ToString(kind) + " model needs more than " +
-                                std::to_string(model.FeatureCount()) + " poses, got " + std::to_string(samples.size()));
+    throw std::invalid_argument(std::string("FitHallModel: the ") + ToString(kind) +
+                                " model needs more than " + std::to_string(model.FeatureCount()) +
+                                " poses, got " + std::to_string(samples.size()));
   if (kind == HallModelKind::kQuadratic || kind == HallModelKind::kCubic) {
     double ss = 0;
     for (const auto& s : samples) ss += fg(s.t_s).squaredNorm();
     model.field_scale_uT = std::max(1e-9, std::sqrt(ss / samples.size() / 3));
   }
   if (kind == HallModelKind::kSine) MeasureSinePhases(fg, o, &model);
+  return model;
+}
+
+// The search grid: delta_t_min_s + k grid_step_s up to delta_t_max_s (within 1e-15 s).
+int GridPoints(const HallFitOptions& o) {
+  return static_cast<int>(std::floor((o.delta_t_max_s - o.delta_t_min_s + 1e-15) / o.grid_step_s)) +
+         1;
+}
+
+}  // namespace
+
+DeltaTProfile ProfileDeltaT(HallModelKind kind, const std::vector<PoseSample>& samples,
+                            const FieldFunction& fg, const HallFitOptions& o) {
+  HallModel model = SetUpModel(kind, samples, fg, o);
+  DeltaTProfile p;
+  p.kind = kind;
+  p.residual_dof = 3 * (static_cast<int>(samples.size()) - model.FeatureCount());
+  const int n = GridPoints(o);
+  p.dt_s.reserve(n);
+  p.cost.reserve(n);
+  for (int k = 0; k < n; ++k) {
+    model.delta_t_s = o.delta_t_min_s + k * o.grid_step_s;
+    p.dt_s.push_back(model.delta_t_s);
+    p.cost.push_back(SolveForDelta(&model, samples, fg));
+  }
+  return p;
+}
+
+HallFitResult FitHallModel(HallModelKind kind, const std::vector<PoseSample>& samples,
+                           const FieldFunction& fg, const HallFitOptions& o) {
+  HallModel model = SetUpModel(kind, samples, fg, o);
   auto cost_at = [&](double dt) {
     model.delta_t_s = dt;
     return SolveForDelta(&model, samples, fg);
   };
   // Global scan.
   double best_dt = o.delta_t_min_s, best_cost = std::numeric_limits<double>::infinity();
-  for (double dt = o.delta_t_min_s; dt <= o.delta_t_max_s + 1e-15; dt += o.grid_step_s) {
+  for (int k = 0, n = GridPoints(o); k < n; ++k) {
+    const double dt = o.delta_t_min_s + k * o.grid_step_s;
     const double c = cost_at(dt);
     if (c < best_cost) {
       best_cost = c;
@@ -208,7 +250,8 @@ HallFitResult FitHallModel(HallModelKind kind, const std::vector<PoseSample>& sa
   return r;
 }
 
-Eigen::Vector3d EvaluateRms(const HallModel& model, const std::vector<PoseSample>& samples, const FieldFunction& fg) {
+Eigen::Vector3d EvaluateRms(const HallModel& model, const std::vector<PoseSample>& samples,
+                            const FieldFunction& fg) {
   Eigen::Vector3d ss = Eigen::Vector3d::Zero();
   for (const auto& s : samples) {
     const double tau = s.t_s + model.delta_t_s;

@@ -34,9 +34,9 @@ bool ParseHallModelKind(const std::string& text, HallModelKind* kind);
 
 struct HallModel {
   HallModelKind kind = HallModelKind::kLinear;
-  Eigen::MatrixXd a;            // 3 x F
-  double delta_t_s = 0;         // pose at t <-> field at t + delta_t
-  double field_scale_uT = 1;    // kQuadratic: b = B / scale
+  Eigen::MatrixXd a;          // 3 x F
+  double delta_t_s = 0;       // pose at t <-> field at t + delta_t
+  double field_scale_uT = 1;  // kQuadratic: b = B / scale
   Eigen::Vector3d sine_frequency_hz = Eigen::Vector3d::Zero();  // kSine
   Eigen::Vector3d sine_phase_rad = Eigen::Vector3d::Zero();     // kSine
 
@@ -72,7 +72,7 @@ struct HallFitOptions {
 struct HallFitResult {
   HallModel model;
   Eigen::Vector3d train_rms = Eigen::Vector3d::Zero();  // per output
-  double cost = 0;                                       // sum of squared residuals
+  double cost = 0;                                      // sum of squared residuals
   int samples = 0;
 };
 
@@ -80,6 +80,20 @@ struct HallFitResult {
 // (need more samples than features).
 HallFitResult FitHallModel(HallModelKind kind, const std::vector<PoseSample>& samples,
                            const FieldFunction& foreground, const HallFitOptions& options);
+
+// The cost J(dt) = min_A sum ||f(A, B(t_j + dt)) - y_j||^2 of `kind` on a grid over the search
+// window [options.delta_t_min_s, options.delta_t_max_s] with options.grid_step_s (both ends
+// included), the model set up as FitHallModel sets it up (field scale, sine phases). What the
+// global scan of FitHallModel minimises, for judging whether the minimum is unique.
+struct DeltaTProfile {
+  HallModelKind kind = HallModelKind::kLinear;
+  std::vector<double> dt_s;  // ascending
+  std::vector<double> cost;  // one per dt_s
+  int residual_dof = 0;      // 3 * (samples - features): the residual's degrees of freedom
+};
+// Throws std::invalid_argument like FitHallModel.
+DeltaTProfile ProfileDeltaT(HallModelKind kind, const std::vector<PoseSample>& samples,
+                            const FieldFunction& foreground, const HallFitOptions& options);
 
 // RMS per output of `model` on `samples` with `foreground`.
 Eigen::Vector3d EvaluateRms(const HallModel& model, const std::vector<PoseSample>& samples,

@@ -721,7 +721,12 @@ SessionReport BuildSessionReport(const fs::path& dir, const ReportOptions& optio
     rep.have_hall = true;
     const results::HallModelFile model = results::ReadHallModelYaml(hall_yaml);
     rep.hall_model = hall::ToString(model.model.kind);
-    rep.delta_t_s = model.model.delta_t_s;
+    rep.delta_t_s = model.model.delta_t_s;  // files written before time_offset existed
+    if (model.time_offset) {
+      rep.delta_t_identified = model.time_offset->identified();
+      rep.delta_t_s = rep.delta_t_identified ? model.time_offset->delta_t_s : NAN;
+      rep.delta_t_reason = model.time_offset->reason;
+    }
     if (model.test_rms)
       for (int k = 0; k < 3; ++k) rep.test_rms[k] = (*model.test_rms)[k];
     rep.delta_t_truth_s = have_truth ? truth->TrueDeltaT() : 0.0;
@@ -733,7 +738,7 @@ SessionReport BuildSessionReport(const fs::path& dir, const ReportOptions& optio
     t2.header = {"model", "alpha test RMS (deg)", "beta test RMS (deg)", "trans test RMS (mm)",
                  "delta_t (ms)"};
     for (const auto& c : comparison) {
-      if (c.model == rep.hall_model) rep.delta_t_sigma_s = c.delta_t_std_s;
+      if (c.model == rep.hall_model && !model.time_offset) rep.delta_t_sigma_s = c.delta_t_std_s;
       auto pm = [](double m, double s, const char* f) { return Fmt(f, m) + " +- " + Fmt(f, s); };
       t2.rows.push_back({c.model + (c.model == rep.hall_model ? " (chosen)" : ""),
                          pm(c.test_rms[0], c.test_rms_std[0], "%.4f"),
@@ -744,13 +749,26 @@ SessionReport BuildSessionReport(const fs::path& dir, const ReportOptions& optio
     t2.caption =
         "Mean +- std over the random train/test splits (results/hall_model.yaml). Final "
         "model: " +
-        rep.hall_model + ", delta_t " + Fmt("%.4f ms", rep.delta_t_s * 1e3) +
+        rep.hall_model +
+        (rep.delta_t_identified ? ", delta_t " + Fmt("%.4f ms", rep.delta_t_s * 1e3)
+                                : ", delta_t not identified (" + rep.delta_t_reason + ")") +
         (have_truth ? Fmt(" (truth %.4f ms)", rep.delta_t_truth_s * 1e3) : "") + ".";
     rep.tables.push_back(t2);
 
+    if (model.time_offset && model.time_offset->identified())
+      rep.delta_t_sigma_s = model.time_offset->sigma_s;
     const hall::HallCalibrationOptions defaults;
-    rep.verdict.push_back(JudgeDeltaT(rep.delta_t_s, rep.delta_t_sigma_s, defaults.delta_t_min_s,
-                                      defaults.delta_t_max_s));
+    if (rep.delta_t_identified) {
+      rep.verdict.push_back(JudgeDeltaT(rep.delta_t_s, rep.delta_t_sigma_s, defaults.delta_t_min_s,
+                                        defaults.delta_t_max_s));
+    } else {
+      VerdictLine v;
+      v.level = Level::kWarn;
+      v.name = "Hall time offset delta_t";
+      v.figure = "not identified: " + rep.delta_t_reason;
+      v.rule = "warn when the recording does not determine delta_t (hall_model.yaml time_offset)";
+      rep.verdict.push_back(v);
+    }
     // The time base's fit figures (results::ReadHallModelYaml reads offset, rate and period).
     try {
       const YAML::Node tb = YAML::LoadFile(hall_yaml.string())["time_base"];
@@ -905,8 +923,10 @@ SessionReport BuildSessionReport(const fs::path& dir, const ReportOptions& optio
     t << "  model:                              " << rep.hall_model << "\n";
     t << "  test RMS alpha / beta / trans:      " << Fmt("%.4f deg / ", rep.test_rms[0])
       << Fmt("%.4f deg / ", rep.test_rms[1]) << Fmt("%.4f mm\n", rep.test_rms[2]);
-    t << "  delta_t estimated:                  " << Fmt("%.4f ms", rep.delta_t_s * 1e3);
-    if (have_truth)
+    t << "  delta_t estimated:                  "
+      << (rep.delta_t_identified ? Fmt("%.4f ms", rep.delta_t_s * 1e3)
+                                 : "not identified (" + rep.delta_t_reason + ")");
+    if (have_truth && rep.delta_t_identified)
       t << Fmt(" (truth %.4f ms", rep.delta_t_truth_s * 1e3)
         << Fmt(", error %.4f ms)", (rep.delta_t_s - rep.delta_t_truth_s) * 1e3);
     t << "\n";

@@ -40,6 +40,10 @@ struct SessionReport {
   bool have_hall = false;
   std::string hall_model;
   double delta_t_s = 0, delta_t_sigma_s = 0, delta_t_truth_s = 0;
+  // hall_model.yaml time_offset: false when the recording does not determine dt (delta_t_s and
+  // delta_t_sigma_s are then NaN, delta_t_reason says why).
+  bool delta_t_identified = true;
+  std::string delta_t_reason;
   double test_rms[3] = {0, 0, 0};  // alpha deg, beta deg, trans mm
   bool have_noise_floor = false;
   double noise_floor[3] = {0, 0, 0};     // single-reading noise through the model, same units

@@ -106,7 +106,9 @@ SweepReport BuildSweepReport(const fs::path& dir, const sweep::SweepPlan& plan,
                       ? Fmt("%.4f", r.test_rms[0]) + " / " + Fmt("%.4f", r.test_rms[1])
                       : "-");
     row.push_back(f.ok && r.have_hall ? Fmt("%.4f", r.test_rms[2]) : "-");
-    row.push_back(f.ok && r.have_hall ? Fmt("%.3f", r.delta_t_s * 1e3) : "-");
+    row.push_back(f.ok && r.have_hall
+                      ? (r.delta_t_identified ? Fmt("%.3f", r.delta_t_s * 1e3) : std::string("n/i"))
+                      : "-");
     t.rows.push_back(row);
     t.row_links.push_back(
         fs::exists(dir / points[i].name / "report.html") ? points[i].name + "/report.html" : "");

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdarg>
 #include <cstdio>
 #include <exception>
@@ -235,6 +236,24 @@ std::string FormatTableTwo(const hall::HallCalibrationResult& r,
   return s.str();
 }
 
+std::string FormatDeltaT(const hall::DeltaTEstimate& e, hall::HallModelKind model,
+                         double model_delta_t_s) {
+  const std::string own = e.model == model
+                              ? std::string()
+                              : Printf("; the %s model's own dt %.4f ms aligns phases, not clocks",
+                                       hall::ToString(model), model_delta_t_s * 1e3);
+  if (!e.identified())
+    return Printf("delta_t not identified (%s: %s%s)", hall::ToString(e.status), e.reason.c_str(),
+                  own.c_str());
+  std::string next = std::isnan(e.separation)
+                         ? std::string("no other minimum in the window")
+                         : Printf("next minimum at %.3f ms, %.1f residual variances higher",
+                                  e.runner_up_s * 1e3, e.separation);
+  return Printf("delta_t = %.4f ms +- %.4f ms (%s model, identified: %d of %d splits agree, %s%s)",
+                e.delta_t_s * 1e3, e.sigma_s * 1e3, hall::ToString(e.model), e.splits_agreeing,
+                e.splits, next.c_str(), own.c_str());
+}
+
 HallCalibrationStepResult RunHallCalibration(const fs::path& dir,
                                              const hall::HallCalibrationOptions& options) {
   HallCalibrationStepResult r;
@@ -253,6 +272,7 @@ HallCalibrationStepResult RunHallCalibration(const fs::path& dir,
     interchange::WriteFileAtomically(r.model_file, FormatHallModelYaml(result, options));
     r.model = result.final_fit.model.kind;
     r.delta_t_s = result.final_fit.model.delta_t_s;
+    r.time_offset = result.delta_t;
     const hall::TimeBase& tb = result.actual_time_base;
     r.text = FormatTableTwo(result, options) +
              Printf(
@@ -261,8 +281,14 @@ HallCalibrationStepResult RunHallCalibration(const fs::path& dir,
                  tb.edges_used, tb.edges_missing, tb.edges_rejected, tb.RateErrorPpm(),
                  tb.jitter_rms_us) +
              ActualPeriodsLine(result.actual_periods, setup.actual.readings.size()) +
-             Printf("model: %s, delta_t = %.4f ms, wrote %s (%.1f s)\n", hall::ToString(r.model),
-                    r.delta_t_s * 1e3, r.model_file.string().c_str(), seconds);
+             Printf("model: %s, %s, wrote %s (%.1f s)\n", hall::ToString(r.model),
+                    FormatDeltaT(r.time_offset, r.model, r.delta_t_s).c_str(),
+                    r.model_file.string().c_str(), seconds);
+    if (!r.time_offset.identified())
+      r.log.push_back(
+          {StepLogLine::Level::kWarning, "delta_t not identified (" +
+                                             std::string(hall::ToString(r.time_offset.status)) +
+                                             "): " + r.time_offset.reason});
   } catch (const std::exception& e) {
     r.error = e.what();
   }

@@ -79,8 +79,15 @@ std::string FormatTableTwo(const hall::HallCalibrationResult& result,
 struct HallCalibrationStepResult : StepReport {
   std::filesystem::path model_file;  // results/hall_model.yaml (when ok)
   hall::HallModelKind model = hall::HallModelKind::kLinear;
-  double delta_t_s = 0;
+  double delta_t_s = 0;  // the chosen model's own dt (hall_model.yaml delta_t_s)
+  // The session's dt (hall_model.yaml time_offset): identified or not, and why.
+  hall::DeltaTEstimate time_offset;
 };
+// The text lines of `estimate` (`model_delta_t_s`: the chosen model's own dt, `model` its kind):
+// "delta_t = 0.5474 ms +- 0.0052 ms (cubic model, identified: ...)" or
+// "delta_t not identified (splits disagree): ...".
+std::string FormatDeltaT(const hall::DeltaTEstimate& estimate, hall::HallModelKind model,
+                         double model_delta_t_s);
 // Fits the Hall models and delta_t on `dir` (needs results/mirror_planes.csv from the solve) and
 // writes results/hall_model.yaml. `text`: Table II, the clock figures and the chosen model.
 HallCalibrationStepResult RunHallCalibration(const std::filesystem::path& dir,

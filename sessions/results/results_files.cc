@@ -536,6 +536,34 @@ std::string FormatHallModelYaml(const hall::HallCalibrationResult& r,
     cmp.push_back(e);
   }
   y["comparison"] = cmp;
+  // The session's dt: written as a figure only when the recording determines it.
+  const hall::DeltaTEstimate& dt = r.delta_t;
+  YAML::Node to;
+  to["identified"] = dt.identified();
+  to["status"] = hall::ToString(dt.status);
+  to["model"] = hall::ToString(dt.model);
+  auto number = [&to](const char* key, double v) {
+    if (std::isfinite(v)) to[key] = common::ShortestDouble(v);
+  };
+  if (dt.identified()) {
+    number("delta_t_s", dt.delta_t_s);
+    number("sigma_s", dt.sigma_s);
+  }
+  if (!dt.reason.empty()) to["reason"] = dt.reason;
+  number("profile_min_s", dt.profile_min_s);
+  number("runner_up_s", dt.runner_up_s);
+  number("separation", dt.separation);
+  to["splits"] = dt.splits;
+  to["splits_agreeing"] = dt.splits_agreeing;
+  to["search_s"] = YAML::Node(YAML::NodeType::Sequence);
+  to["search_s"].push_back(common::ShortestDouble(dt.search_min_s));
+  to["search_s"].push_back(common::ShortestDouble(dt.search_max_s));
+  to["search_s"].SetStyle(YAML::EmitterStyle::Flow);
+  to["bracket_s"] = YAML::Node(YAML::NodeType::Sequence);
+  to["bracket_s"].push_back(common::ShortestDouble(dt.bracket_min_s));
+  to["bracket_s"].push_back(common::ShortestDouble(dt.bracket_max_s));
+  to["bracket_s"].SetStyle(YAML::EmitterStyle::Flow);
+  y["time_offset"] = to;
   y["protocol"]["repetitions"] = o.repetitions;
   y["protocol"]["train_fraction"] = common::ShortestDouble(o.train_fraction);
   y["protocol"]["seed"] = o.seed;
@@ -657,6 +685,29 @@ HallModelFile ParseHallModelYaml(const std::string& text, const std::string& fil
         Eigen::Vector3d(Num(Need(tr, "alpha_deg", file, "test_rms."), file, "test_rms.alpha_deg"),
                         Num(Need(tr, "beta_deg", file, "test_rms."), file, "test_rms.beta_deg"),
                         Num(Need(tr, "trans_mm", file, "test_rms."), file, "test_rms.trans_mm"));
+  }
+  if (const YAML::Node to = y["time_offset"]) {
+    if (!to.IsMap()) Fail(file, "time_offset", "expected a mapping");
+    hall::DeltaTEstimate e;
+    const std::string status =
+        Str(Need(to, "status", file, "time_offset."), file, "time_offset.status");
+    if (!hall::ParseDeltaTStatus(status, &e.status))
+      Fail(file, "time_offset.status", "unknown status '" + status + "'");
+    const std::string model =
+        Str(Need(to, "model", file, "time_offset."), file, "time_offset.model");
+    if (!hall::ParseHallModelKind(model, &e.model))
+      Fail(file, "time_offset.model", "unknown model '" + model + "'");
+    auto number = [&](const char* key, double* out) {
+      if (to[key]) *out = Num(to[key], file, std::string("time_offset.") + key);
+    };
+    if (e.identified())
+      e.delta_t_s = Num(Need(to, "delta_t_s", file, "time_offset."), file, "time_offset.delta_t_s");
+    number("sigma_s", &e.sigma_s);
+    number("profile_min_s", &e.profile_min_s);
+    number("runner_up_s", &e.runner_up_s);
+    number("separation", &e.separation);
+    if (to["reason"]) e.reason = Str(to["reason"], file, "time_offset.reason");
+    l.time_offset = e;
   }
   try {
     l.background = hall::PhaseProfile::FromBins(period, std::move(b));

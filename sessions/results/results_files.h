@@ -131,7 +131,12 @@ MirrorPosesSummary ReadMirrorPosesSummary(const std::filesystem::path& file);
 // ----------------------------------------------------------------------------- Hall results
 
 // results/hall_model.yaml (format msmcal-hall-model/1): model kind, parameters, delta_t_s,
-// train/test RMS per output, the Table II comparison, the time base and background profile.
+// train/test RMS per output, the Table II comparison, the time base and background profile, and
+// (since issue 15; optional for readers) time_offset: whether the recording determines the
+// session's dt (hall::DeltaTEstimate). delta_t_s is the chosen model's own dt, what the
+// predictor uses; the session's dt is time_offset.delta_t_s, written only when
+// time_offset.identified is true (a sine model's dt aligns phases; a short recording leaves dt
+// ambiguous). A file without time_offset is from before: its delta_t_s was reported as dt.
 std::string FormatHallModelYaml(const hall::HallCalibrationResult& result,
                                 const hall::HallCalibrationOptions& options);
 struct HallModelFile {
@@ -142,6 +147,9 @@ struct HallModelFile {
   // The final model's mean test RMS over the splits (alpha deg, beta deg, trans mm); absent when
   // the file has no test_rms.
   std::optional<Eigen::Vector3d> test_rms;
+  // time_offset (absent in files written before it): status, model, reason, and the figures
+  // written (delta_t_s and sigma_s when identified; NaN when a figure is absent).
+  std::optional<hall::DeltaTEstimate> time_offset;
 };
 // Errors name the file and the field: "hall_model.yaml: field 'delta_t_s': expected a number
 // (line 3)".

@@ -105,8 +105,10 @@ std::vector<Column> Columns(const SweepPlan& plan, const std::vector<SummaryRow>
       [](const SummaryRow& r) { return Fixed(r.figures.hall_rms_beta_deg, 4); });
   add(for_csv ? "hall_rms_trans_mm" : "h_t_mm",
       [](const SummaryRow& r) { return Fixed(r.figures.hall_rms_trans_mm, 4); });
-  add(for_csv ? "hall_delta_t_ms" : "dt_ms", [](const SummaryRow& r) {
-    return r.figures.hall_delta_t_s ? Fixed(*r.figures.hall_delta_t_s * 1e3, 4) : std::string();
+  // dt not identified by the recording: "n/i" in the table, an empty cell in the CSV.
+  add(for_csv ? "hall_delta_t_ms" : "dt_ms", [for_csv](const SummaryRow& r) {
+    if (r.figures.hall_delta_t_s) return Fixed(*r.figures.hall_delta_t_s * 1e3, 4);
+    return r.figures.hall_delta_t_not_identified && !for_csv ? std::string("n/i") : std::string();
   });
   if (for_csv) {
     add("hall_vs_truth_alpha_deg",
@@ -164,7 +166,17 @@ PointFigures ReadPointFigures(const fs::path& folder) {
     try {
       const YAML::Node y = YAML::LoadFile(hall_model.string());
       if (y["model"] && y["model"].IsScalar()) f.hall_model = y["model"].as<std::string>();
-      f.hall_delta_t_s = YamlNumber(y["delta_t_s"]);
+      const YAML::Node to = y["time_offset"];
+      if (to && to.IsMap() && to["identified"] && to["identified"].IsScalar()) {
+        if (to["identified"].as<bool>()) {
+          f.hall_delta_t_s = YamlNumber(to["delta_t_s"]);
+        } else {
+          f.hall_delta_t_not_identified =
+              to["reason"] && to["reason"].IsScalar() ? to["reason"].Scalar() : std::string();
+        }
+      } else {
+        f.hall_delta_t_s = YamlNumber(y["delta_t_s"]);  // written before time_offset existed
+      }
       YAML::Node rms = y["test_rms"] ? y["test_rms"] : y["train_rms"];
       if (rms && rms.IsMap()) {
         f.hall_rms_alpha_deg = YamlNumber(rms["alpha_deg"]);

@@ -23,7 +23,10 @@ struct PointFigures {
   std::optional<double> hall_rms_alpha_deg, hall_rms_beta_deg,
       hall_rms_trans_mm;  // test_rms
                           // (train_rms when no test split was run)
+  // The session's dt: hall_model.yaml time_offset.delta_t_s when identified (delta_t_s in files
+  // without time_offset); absent when time_offset says it is not identified, with the reason.
   std::optional<double> hall_delta_t_s;
+  std::optional<std::string> hall_delta_t_not_identified;
   // Against the simulator's truth (simulated sessions; filled by the runner's `augment` hook from
   // the session report): plane normal error RMS, Hall-predicted pose vs true pose RMS.
   std::optional<double> normal_rms_vs_truth_deg;

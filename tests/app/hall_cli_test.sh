@@ -33,6 +33,10 @@ truth = yaml.safe_load(open(f"{d}/s/truth/hall.yaml"))
 assert model["model"] == "cubic", model["model"]
 dt, dt_true = float(model["delta_t_s"]), float(truth["delta_t_s"])
 assert abs(dt - dt_true) < 50e-6, (dt, dt_true)
+# The session's dt (time_offset): identified on this full-size folder, the cubic model's.
+to = model["time_offset"]
+assert to["identified"] is True and to["status"] == "identified", to
+assert to["model"] == "cubic" and abs(float(to["delta_t_s"]) - dt_true) < 50e-6, to
 assert {"alpha_deg", "beta_deg", "trans_mm"} <= set(model["test_rms"])
 n_in = sum(1 for _ in open(f"{d}/s/hall/actual.csv")) - 1
 rows = list(csv.DictReader(open(f"{d}/poses.csv")))

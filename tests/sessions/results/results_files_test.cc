@@ -1,6 +1,7 @@
 #include "sessions/results/results_files.h"
 
 #include <gtest/gtest.h>
+#include <yaml-cpp/yaml.h>
 
 #include <cmath>
 #include <limits>
@@ -321,6 +322,56 @@ TEST(HallModelYaml, RoundTripOfTheFieldsThePredictorAndTheReportUse) {
   EXPECT_EQ(back.background.bins(), r.foreground.background.bins());
   ASSERT_TRUE(back.test_rms.has_value());
   EXPECT_EQ(*back.test_rms, r.table[0].test_rms_mean);
+}
+
+// time_offset (issue 15): the session's dt is written as a figure only when identified; a file
+// written before time_offset existed reads without one.
+TEST(HallModelYaml, TimeOffsetRoundTripAndOlderFilesWithoutIt) {
+  hall::HallCalibrationResult r = SampleHallResult();
+  r.delta_t.status = hall::DeltaTStatus::kIdentified;
+  r.delta_t.model = hall::HallModelKind::kLinear;
+  r.delta_t.delta_t_s = 1.25e-4;
+  r.delta_t.sigma_s = 3e-6;
+  r.delta_t.separation = 812.5;
+  r.delta_t.runner_up_s = -2.3e-3;
+  const HallModelFile ok = ParseHallModelYaml(FormatHallModelYaml(r, {}), "a.yaml");
+  ASSERT_TRUE(ok.time_offset.has_value());
+  EXPECT_TRUE(ok.time_offset->identified());
+  EXPECT_EQ(ok.time_offset->delta_t_s, 1.25e-4);
+  EXPECT_EQ(ok.time_offset->sigma_s, 3e-6);
+  EXPECT_EQ(ok.time_offset->separation, 812.5);
+  EXPECT_EQ(ok.time_offset->runner_up_s, -2.3e-3);
+
+  r.delta_t.status = hall::DeltaTStatus::kAmbiguous;
+  r.delta_t.reason = "another minimum at -2.300 ms costs only 8.2 residual variances more";
+  const std::string text = FormatHallModelYaml(r, {});
+  const HallModelFile no = ParseHallModelYaml(text, "b.yaml");
+  ASSERT_TRUE(no.time_offset.has_value());
+  EXPECT_EQ(no.time_offset->status, hall::DeltaTStatus::kAmbiguous);
+  EXPECT_EQ(no.time_offset->reason, r.delta_t.reason);
+  EXPECT_TRUE(std::isnan(no.time_offset->delta_t_s));
+  EXPECT_EQ(no.model.delta_t_s, r.final_fit.model.delta_t_s);  // the predictor's dt stays
+  const YAML::Node y = YAML::Load(text);
+  EXPECT_FALSE(y["time_offset"]["identified"].as<bool>());
+  EXPECT_FALSE(y["time_offset"]["delta_t_s"]);
+
+  // Before issue 15: no time_offset section.
+  YAML::Node old = YAML::Load(text);
+  old.remove("time_offset");
+  YAML::Emitter e;
+  e << old;
+  const HallModelFile before = ParseHallModelYaml(e.c_str(), "c.yaml");
+  EXPECT_FALSE(before.time_offset.has_value());
+  EXPECT_EQ(before.model.delta_t_s, r.final_fit.model.delta_t_s);
+  // A status that is not one of ours is named.
+  std::string bad = text;
+  const size_t at = bad.find("status: ambiguous");
+  ASSERT_NE(at, std::string::npos) << text;
+  bad.replace(at, 17, "status: maybe");
+  EXPECT_NE(ErrorOf([&] {
+              ParseHallModelYaml(bad, "d.yaml");
+            }).find("d.yaml: field 'time_offset.status': unknown status 'maybe'"),
+            std::string::npos);
 }
 
 TEST(HallModelYaml, ABadFieldIsNamed) {

@@ -410,6 +410,33 @@ TEST(SweepSummary, ReadsFiguresAndWritesTheTable) {
   EXPECT_NE(table.find("p002-fast.frequency_hz=205-r0 failed: rig, \"bad\""), std::string::npos);
 }
 
+// hall_model.yaml's time_offset (issue 15): the session's dt when identified; when not, no figure
+// (the model's own delta_t_s is not the session's): "n/i" in the table, an empty CSV cell.
+TEST(SweepSummary, DeltaTNotIdentifiedIsShownInsteadOfANumber) {
+  const fs::path dir = FreshDir("summary_dt");
+  const std::string head = "format: msmcal-hall-model/1\nmodel: sine\ndelta_t_s: -0.0016\n";
+  WriteText(dir / "results" / "hall_model.yaml",
+            head +
+                "time_offset: {identified: false, status: ambiguous, model: linear, reason: "
+                "\"another minimum\"}\n");
+  const PointFigures no = ReadPointFigures(dir);
+  EXPECT_FALSE(no.hall_delta_t_s.has_value());
+  EXPECT_EQ(no.hall_delta_t_not_identified.value_or("?"), "another minimum");
+  const SweepPlan plan =
+      ParseSimPlan("axes:\n  mirror.fast.frequency_hz: [205]\n", "plan.yaml", ".");
+  const std::vector<SummaryRow> rows = {
+      {ExpandPoints(plan)[0], {PointStatus::kDone, "", 61, 1, false}, no}};
+  EXPECT_NE(SummaryTable(plan, rows).find("n/i"), std::string::npos) << SummaryTable(plan, rows);
+  EXPECT_EQ(SummaryCsv(plan, rows).find("-1.6"), std::string::npos) << SummaryCsv(plan, rows);
+  WriteText(dir / "results" / "hall_model.yaml",
+            head +
+                "time_offset: {identified: true, status: identified, model: cubic, delta_t_s: "
+                "0.000548}\n");
+  const PointFigures yes = ReadPointFigures(dir);
+  EXPECT_DOUBLE_EQ(yes.hall_delta_t_s.value_or(0), 0.000548);
+  EXPECT_FALSE(yes.hall_delta_t_not_identified.has_value());
+}
+
 // Fake rig for the runner: a point's "acquisition" writes a journal marker, a log and frames;
 // "finish" writes results. Points can be told to fail.
 struct FakeRig {
