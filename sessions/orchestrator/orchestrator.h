@@ -64,12 +64,13 @@ struct FrameReport {
 };
 using FrameObserver = std::function<void(const FrameReport&)>;
 
-// A frame streamed while the orchestrator waits for the person at the rig (the live view, issue
-// 19): during every RigOperator::Prepare* call made once the camera streams, a pump thread grabs
-// the free-running camera's frames and hands each to OrchestratorOptions::on_live_frame. The
-// pump is stopped and joined before Prepare* returns to the orchestrator, which then grabs
-// again itself; a live frame is never a session frame and is never gated nor journalled.
-// Pointers are valid during the call only.
+// A frame streamed while the orchestrator waits for the person at the rig or for the generators
+// (the live view, issue 19): during every RigOperator::Prepare* call made once the camera
+// streams, and during each frame's generator change before it (a new laser pattern, the drives
+// switched and their settle), a pump thread grabs the free-running camera's frames and hands
+// each to OrchestratorOptions::on_live_frame. The pump is stopped and joined before the
+// orchestrator grabs again itself; a live frame is never a session frame and is never gated
+// nor journalled. Pointers are valid during the call only.
 struct LiveFrame {
   // The frame the operator is setting up: step 1 or 2 and its index into the plan's step1 /
   // step2 list; step 0 while a Hall recording is set up (no frame follows directly).

@@ -164,8 +164,9 @@ std::vector<ValidationDetailRow> ValidationDetailRows(
   return rows;
 }
 
-std::vector<ValidationDetailRow> ReadValidationDetailCsv(const fs::path& file) {
-  interchange::CsvReader csv(file, file.string(), {kValidationDetailHeader});
+namespace {
+
+std::vector<ValidationDetailRow> DetailRows(interchange::CsvReader& csv) {
   std::vector<ValidationDetailRow> rows;
   while (csv.Next()) {
     rows.push_back({csv.Int(0), csv.Int(1), csv.Double(2), csv.Double(3), csv.Double(4),
@@ -174,25 +175,7 @@ std::vector<ValidationDetailRow> ReadValidationDetailCsv(const fs::path& file) {
   return rows;
 }
 
-void WriteValidationDetailCsv(const fs::path& file, const std::vector<ValidationDetailRow>& rows) {
-  std::string out = std::string(kValidationDetailHeader) + "\n";
-  for (const auto& r : rows)
-    common::AppendCsvRow(&out, r.beam, r.j, r.err_px, r.err_deg, r.baseline_err_px,
-                         r.baseline_err_deg, r.predicted_sigma_px, r.normalised_error);
-  common::WriteFileAtomically(file, out);
-}
-
-std::vector<ValidationDotRow> ValidationDotRows(
-    const std::vector<solver::ValidationDetail>& validation) {
-  std::vector<ValidationDotRow> rows;
-  for (const auto& v : validation)
-    rows.push_back(
-        {v.row.beam, v.row.j, v.observed_px, v.predicted_px, v.cov_px2, v.joint_whitened});
-  return rows;
-}
-
-std::vector<ValidationDotRow> ReadValidationDotsCsv(const fs::path& file) {
-  interchange::CsvReader csv(file, file.string(), {kValidationDotsHeader});
+std::vector<ValidationDotRow> DotRows(interchange::CsvReader& csv) {
   std::vector<ValidationDotRow> rows;
   while (csv.Next()) {
     ValidationDotRow r;
@@ -207,23 +190,13 @@ std::vector<ValidationDotRow> ReadValidationDotsCsv(const fs::path& file) {
   return rows;
 }
 
-void WriteValidationDotsCsv(const fs::path& file, const std::vector<ValidationDotRow>& rows) {
-  std::string out = std::string(kValidationDotsHeader) + "\n";
-  for (const auto& r : rows)
-    common::AppendCsvRow(&out, r.beam, r.j, r.observed_px.x(), r.observed_px.y(),
-                         r.predicted_px.x(), r.predicted_px.y(), r.cov_px2(0, 0), r.cov_px2(0, 1),
-                         r.cov_px2(1, 1), r.joint_whitened.x(), r.joint_whitened.y());
-  common::WriteFileAtomically(file, out);
-}
-
-std::vector<solver::WhitenedResidual> ReadResidualsCsv(const fs::path& file) {
-  interchange::CsvReader csv(file, file.string(), {kResidualsHeader});
+std::vector<solver::WhitenedResidual> ResidualRows(interchange::CsvReader& csv) {
   std::vector<solver::WhitenedResidual> rows;
   while (csv.Next()) {
     solver::WhitenedResidual r;
     r.family = csv.Int(0);
     if (r.family < 0 || r.family >= solver::kNumFamilies)
-      throw interchange::InterchangeError(file.string() + ":" + std::to_string(csv.line()) +
+      throw interchange::InterchangeError(csv.display() + ":" + std::to_string(csv.line()) +
                                           ": column 'family': " + std::to_string(r.family) +
                                           " is not a residual family (0.." +
                                           std::to_string(solver::kNumFamilies - 1) + ")");
@@ -235,27 +208,116 @@ std::vector<solver::WhitenedResidual> ReadResidualsCsv(const fs::path& file) {
   return rows;
 }
 
-void WriteResidualsCsv(const fs::path& file, const std::vector<solver::WhitenedResidual>& rows) {
-  std::string out = std::string(kResidualsHeader) + "\n";
-  for (const auto& r : rows)
-    common::AppendCsvRow(&out, r.family, r.group, r.observed_px.x(), r.observed_px.y(),
-                         r.whitened.x(), r.whitened.y());
-  common::WriteFileAtomically(file, out);
-}
-
-std::vector<HallPoseRow> ReadHallPosesCsv(const fs::path& file) {
-  interchange::CsvReader csv(file, file.string(), {kHallPosesHeader});
+std::vector<HallPoseRow> HallPoseRows(interchange::CsvReader& csv) {
   std::vector<HallPoseRow> rows;
   while (csv.Next())
     rows.push_back({csv.Double(0), csv.Double(1), csv.Double(2), csv.Double(3), csv.Double(4)});
   return rows;
 }
 
-void WriteHallPosesCsv(const fs::path& file, const std::vector<HallPoseRow>& rows) {
+}  // namespace
+
+std::vector<ValidationDetailRow> ReadValidationDetailCsv(const fs::path& file) {
+  interchange::CsvReader csv(file, file.string(), {kValidationDetailHeader});
+  return DetailRows(csv);
+}
+
+std::vector<ValidationDetailRow> ParseValidationDetailCsv(const std::string& text,
+                                                          const std::string& display_name) {
+  interchange::CsvReader csv(interchange::CsvReader::Text{text}, display_name,
+                             {kValidationDetailHeader});
+  return DetailRows(csv);
+}
+
+std::string FormatValidationDetailCsv(const std::vector<ValidationDetailRow>& rows) {
+  std::string out = std::string(kValidationDetailHeader) + "\n";
+  for (const auto& r : rows)
+    common::AppendCsvRow(&out, r.beam, r.j, r.err_px, r.err_deg, r.baseline_err_px,
+                         r.baseline_err_deg, r.predicted_sigma_px, r.normalised_error);
+  return out;
+}
+
+void WriteValidationDetailCsv(const fs::path& file, const std::vector<ValidationDetailRow>& rows) {
+  common::WriteFileAtomically(file, FormatValidationDetailCsv(rows));
+}
+
+std::vector<ValidationDotRow> ValidationDotRows(
+    const std::vector<solver::ValidationDetail>& validation) {
+  std::vector<ValidationDotRow> rows;
+  for (const auto& v : validation)
+    rows.push_back(
+        {v.row.beam, v.row.j, v.observed_px, v.predicted_px, v.cov_px2, v.joint_whitened});
+  return rows;
+}
+
+std::vector<ValidationDotRow> ReadValidationDotsCsv(const fs::path& file) {
+  interchange::CsvReader csv(file, file.string(), {kValidationDotsHeader});
+  return DotRows(csv);
+}
+
+std::vector<ValidationDotRow> ParseValidationDotsCsv(const std::string& text,
+                                                     const std::string& display_name) {
+  interchange::CsvReader csv(interchange::CsvReader::Text{text}, display_name,
+                             {kValidationDotsHeader});
+  return DotRows(csv);
+}
+
+std::string FormatValidationDotsCsv(const std::vector<ValidationDotRow>& rows) {
+  std::string out = std::string(kValidationDotsHeader) + "\n";
+  for (const auto& r : rows)
+    common::AppendCsvRow(&out, r.beam, r.j, r.observed_px.x(), r.observed_px.y(),
+                         r.predicted_px.x(), r.predicted_px.y(), r.cov_px2(0, 0), r.cov_px2(0, 1),
+                         r.cov_px2(1, 1), r.joint_whitened.x(), r.joint_whitened.y());
+  return out;
+}
+
+void WriteValidationDotsCsv(const fs::path& file, const std::vector<ValidationDotRow>& rows) {
+  common::WriteFileAtomically(file, FormatValidationDotsCsv(rows));
+}
+
+std::vector<solver::WhitenedResidual> ReadResidualsCsv(const fs::path& file) {
+  interchange::CsvReader csv(file, file.string(), {kResidualsHeader});
+  return ResidualRows(csv);
+}
+
+std::vector<solver::WhitenedResidual> ParseResidualsCsv(const std::string& text,
+                                                        const std::string& display_name) {
+  interchange::CsvReader csv(interchange::CsvReader::Text{text}, display_name, {kResidualsHeader});
+  return ResidualRows(csv);
+}
+
+std::string FormatResidualsCsv(const std::vector<solver::WhitenedResidual>& rows) {
+  std::string out = std::string(kResidualsHeader) + "\n";
+  for (const auto& r : rows)
+    common::AppendCsvRow(&out, r.family, r.group, r.observed_px.x(), r.observed_px.y(),
+                         r.whitened.x(), r.whitened.y());
+  return out;
+}
+
+void WriteResidualsCsv(const fs::path& file, const std::vector<solver::WhitenedResidual>& rows) {
+  common::WriteFileAtomically(file, FormatResidualsCsv(rows));
+}
+
+std::vector<HallPoseRow> ReadHallPosesCsv(const fs::path& file) {
+  interchange::CsvReader csv(file, file.string(), {kHallPosesHeader});
+  return HallPoseRows(csv);
+}
+
+std::vector<HallPoseRow> ParseHallPosesCsv(const std::string& text,
+                                           const std::string& display_name) {
+  interchange::CsvReader csv(interchange::CsvReader::Text{text}, display_name, {kHallPosesHeader});
+  return HallPoseRows(csv);
+}
+
+std::string FormatHallPosesCsv(const std::vector<HallPoseRow>& rows) {
   std::string out = std::string(kHallPosesHeader) + "\n";
   for (const auto& r : rows)
     common::AppendCsvRow(&out, r.mcu_time_us, r.t_s, r.alpha_deg, r.beta_deg, r.trans_mm);
-  common::WriteFileAtomically(file, out);
+  return out;
+}
+
+void WriteHallPosesCsv(const fs::path& file, const std::vector<HallPoseRow>& rows) {
+  common::WriteFileAtomically(file, FormatHallPosesCsv(rows));
 }
 
 // ------------------------------------------------------------------------------ summary.json
