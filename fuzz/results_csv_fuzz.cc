@@ -18,30 +18,31 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   switch (data[0] % 7) {
     case 0:
       fuzz::CsvRoundTrip(text, n, "results/mirror_planes.csv", results::ParseMirrorPlanesCsv,
-           results::FormatMirrorPlanesCsv);
+                         results::FormatMirrorPlanesCsv);
       break;
     case 1:
-      fuzz::CsvRoundTrip(text, n, "results/beams.csv", results::ParseBeamsCsv, results::FormatBeamsCsv);
+      fuzz::CsvRoundTrip(text, n, "results/beams.csv", results::ParseBeamsCsv,
+                         results::FormatBeamsCsv);
       break;
     case 2:
       fuzz::CsvRoundTrip(text, n, "results/validation.csv", results::ParseValidationCsv,
-           results::FormatValidationCsv);
+                         results::FormatValidationCsv);
       break;
     case 3:
-      fuzz::CsvRoundTrip(text, n, "results/validation_detail.csv", results::ParseValidationDetailCsv,
-           results::FormatValidationDetailCsv);
+      fuzz::CsvRoundTrip(text, n, "results/validation_detail.csv",
+                         results::ParseValidationDetailCsv, results::FormatValidationDetailCsv);
       break;
     case 4:
       fuzz::CsvRoundTrip(text, n, "results/validation_dots.csv", results::ParseValidationDotsCsv,
-           results::FormatValidationDotsCsv);
+                         results::FormatValidationDotsCsv);
       break;
     case 5:
       fuzz::CsvRoundTrip(text, n, "results/residuals.csv", results::ParseResidualsCsv,
-           results::FormatResidualsCsv);
+                         results::FormatResidualsCsv);
       break;
     case 6:
       fuzz::CsvRoundTrip(text, n, "results/hall_poses.csv", results::ParseHallPosesCsv,
-           results::FormatHallPosesCsv);
+                         results::FormatHallPosesCsv);
       break;
   }
   return 0;

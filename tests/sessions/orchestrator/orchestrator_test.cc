@@ -370,8 +370,8 @@ TEST(Orchestrator, TheLivePumpStreamsThroughEveryDriveSettleOfStep2) {
   ASSERT_GT(options.drive_settle_periods, 0);
   const dataset::Recording plan = rig.Plan();
   std::mutex mu;
-  int settling = -1;                 // the step-2 frame whose drives settle now (-1: none)
-  std::vector<size_t> settled;       // step-2 frames that switched the drives, in order
+  int settling = -1;                  // the step-2 frame whose drives settle now (-1: none)
+  std::vector<size_t> settled;        // step-2 frames that switched the drives, in order
   std::map<size_t, int> live_during;  // live images of frame i received during its settle
   int live_total = 0;
   options.on_live_frame = [&](const LiveFrame& f) {
