@@ -183,7 +183,11 @@ std::vector<ValidationDotRow> DotRows(interchange::CsvReader& csv) {
     r.j = csv.Int(1);
     r.observed_px = {csv.Double(2), csv.Double(3)};
     r.predicted_px = {csv.Double(4), csv.Double(5)};
-    r.cov_px2 << csv.Double(6), csv.Double(7), csv.Double(7), csv.Double(8);
+    // Every cell read before the comma initializer: a cell that throws inside it would leave
+    // Eigen's initializer incomplete, and its destructor asserts (an abort where assertions are
+    // on, as in the fuzz build) instead of the error naming file, line and column.
+    const double xx = csv.Double(6), xy = csv.Double(7), yy = csv.Double(8);
+    r.cov_px2 << xx, xy, xy, yy;
     r.joint_whitened = {csv.Double(9), csv.Double(10)};
     rows.push_back(r);
   }

@@ -209,6 +209,15 @@ TEST(ResultsCsv, TheNativeFilesTextEntryPointsAreTheFileReadersAndWriters) {
                                      "results/validation_dots.csv");
             }).find("results/validation_dots.csv:2: expected 11 cells"),
             std::string::npos);
+  // A bad covariance cell is named like any other (results_csv fuzz finding: it threw inside
+  // Eigen's comma initializer, whose destructor then asserted; an abort in the fuzz build).
+  EXPECT_EQ(ErrorOf([&] {
+              ParseValidationDotsCsv(
+                  dots_text.substr(0, dots_text.find('\n') + 1) +
+                      "3,0,1147.9,933,1147.9,932.8,0.0276,-0.0007,0.024x,0.02,0.9\n",
+                  "results/validation_dots.csv");
+            }),
+            "results/validation_dots.csv:2: column 'cov_yy_px2': '0.024x' is not a number");
 
   const std::vector<solver::WhitenedResidual> residuals = {
       {solver::kSlidingDots, 2, {1700.8831930574975, 982.9923919487597}, {-0.147, 1.0625}},
