@@ -185,9 +185,10 @@ cv::Mat FrameToMat(const camera::Frame& frame) {
 // between the constructor and the join in the destructor, the orchestrator's otherwise.
 class LivePump {
  public:
-  LivePump(camera::Camera* cam, const LiveFrameObserver& observer, int step, size_t index) {
+  LivePump(camera::Camera* cam, const LiveFrameObserver& observer, int step, size_t index,
+           std::string hall_recording = "") {
     if (!cam || !observer) return;
-    thread_ = std::thread([this, cam, &observer, step, index] {
+    thread_ = std::thread([this, cam, &observer, step, index, hall_recording] {
       while (!stop_.load()) {
         camera::FrameResult fr = cam->NextFrame(/*timeout_us=*/100'000);
         if (fr.status == camera::FrameStatus::kTimeout) continue;
@@ -198,6 +199,7 @@ class LivePump {
         live.index = index;
         live.image = &image;
         live.host_timestamp_ns = fr.frame.info().host_timestamp_ns;
+        live.hall_recording = hall_recording;
         try {
           observer(live);
         } catch (...) {  // the live view never stops a session
@@ -970,7 +972,7 @@ class SessionController {
     const auto r = [&] {
       // Nothing else takes frames during the background recording: the live view keeps its
       // camera image (issue 19; the view downscales and paces it, LiveViewOptions).
-      LivePump pump(inst_.cam.get(), options_.on_live_frame, 0, 0);
+      LivePump pump(inst_.cam.get(), options_.on_live_frame, 0, 0, "background");
       return RecordHall(*inst_.mcu, out_ / "hall" / "background.csv", options_,
                         options_.background_seconds, nullptr);
     }();

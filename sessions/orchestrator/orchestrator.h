@@ -78,6 +78,9 @@ struct LiveFrame {
   size_t index = 0;
   const cv::Mat* image = nullptr;  // as grabbed (FrameToMat: Mono8/Mono16/RGB8)
   int64_t host_timestamp_ns = 0;   // camera::FrameInfo::host_timestamp_ns
+  // The Hall recording running while this frame was streamed ("background"), empty when none:
+  // known from the pump itself, so its first frame already says so.
+  std::string hall_recording;
 };
 // Called on the pump thread, never concurrently with itself; it may run concurrently with the
 // ProgressFn and the RigStatusObserver (the orchestrator's thread) but not with on_frame (the

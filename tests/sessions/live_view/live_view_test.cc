@@ -227,6 +227,34 @@ TEST(LiveView, LiveFramesAreGatedForTheFrameBeingSetUpAndDrawn) {
   EXPECT_GT(cv::countNonZero(magenta), 50);
 }
 
+// A live frame the pump streams during a Hall recording says so itself: it is shown as the
+// camera image only (no board search) even before the rig's status reports the recording (the
+// first frames of the background recording used to get the slow set-up board search, which
+// under load could hold the pump for the whole recording: cli.live_view_twin_http).
+TEST(LiveView, LiveFramesOfAHallRecordingAreTheImageOnlyFromTheFirst) {
+  const dataset::Recording plan = SmallPlan();
+  LiveViewOptions o;
+  o.max_live_fps = 1000;
+  const cv::Mat board = Checkerboard(7, 5, 30, 400, 300);
+  orchestrator::LiveFrame f;
+  f.step = 0;
+  f.image = &board;
+  {
+    LiveView view(plan, o);
+    view.MakeLiveFrameObserver()(f);  // a recording's set-up: the boards searched
+    const json s = State(view);
+    EXPECT_EQ(s["live"]["caption"], "LIVE (Hall recording set-up)");
+    EXPECT_EQ(s["live"]["boards_found"], json::array({true}));
+  }
+  f.hall_recording = "background";
+  LiveView view(plan, o);  // no rig status: the view does not know of the recording
+  view.MakeLiveFrameObserver()(f);
+  const json s = State(view);
+  EXPECT_TRUE(s["rig"]["hall_recording"].get<std::string>().empty());
+  EXPECT_EQ(s["live"]["caption"], "LIVE (Hall background recording running: camera image only)");
+  EXPECT_EQ(s["live"]["boards_found"], json::array());
+}
+
 TEST(LiveView, GateDecisionsGiveTheFiguresProgressAndEta) {
   const dataset::Recording plan = SmallPlan();
   LiveView view(plan, {});
