@@ -331,7 +331,9 @@ void LiveView::ProcessLiveFrame(const orchestrator::LiveFrame& f) {
   std::string recording;  // a Hall recording running (the background one: frames are free)
   {
     std::lock_guard<std::mutex> lock(mu_);
-    recording = f.step == 0 ? rig_.hall_recording : std::string();
+    // The pump's own word first: the rig's status reports the recording only once it runs,
+    // and a frame taken for a set-up gets the (slow) board search.
+    if (f.step == 0) recording = f.hall_recording.empty() ? rig_.hall_recording : f.hall_recording;
     // During a recording at most 2 images a second, without the board search: the camera image
     // only, so the host's CPU stays with the recording.
     const double fps = recording.empty() ? options_.max_live_fps

@@ -177,16 +177,18 @@ cv::Mat FrameToMat(const camera::Frame& frame) {
 }
 
 // Streams the camera to OrchestratorOptions::on_live_frame while the operator is asked (see
-// LiveFrame): constructed just before a RigOperator::Prepare* call, destroyed (stopped and
-// joined) when it returns or throws. Does nothing without a streaming camera or an observer. A
+// LiveFrame): constructed just before a frame's generator change (Play) and its
+// RigOperator::Prepare* call, or a Hall recording's Prepare call, destroyed (stopped and
+// joined) when they return or throw. Does nothing without a streaming camera or an observer. A
 // camera error ends the pump quietly: the orchestrator's next grab meets it and reports it.
 // The camera is used by one thread at a time, as camera::Camera requires: the pump's thread
 // between the constructor and the join in the destructor, the orchestrator's otherwise.
 class LivePump {
  public:
-  LivePump(camera::Camera* cam, const LiveFrameObserver& observer, int step, size_t index) {
+  LivePump(camera::Camera* cam, const LiveFrameObserver& observer, int step, size_t index,
+           std::string hall_recording = "") {
     if (!cam || !observer) return;
-    thread_ = std::thread([this, cam, &observer, step, index] {
+    thread_ = std::thread([this, cam, &observer, step, index, hall_recording] {
       while (!stop_.load()) {
         camera::FrameResult fr = cam->NextFrame(/*timeout_us=*/100'000);
         if (fr.status == camera::FrameStatus::kTimeout) continue;
@@ -197,6 +199,7 @@ class LivePump {
         live.index = index;
         live.image = &image;
         live.host_timestamp_ns = fr.frame.info().host_timestamp_ns;
+        live.hall_recording = hall_recording;
         try {
           observer(live);
         } catch (...) {  // the live view never stops a session
@@ -929,9 +932,10 @@ class SessionController {
       const auto& f = plan_.step1[i];
       FrameOutcome fo;
       if (!FromJournal(f.file, &fo)) {
-        Play(Step1Signals(plan_), f.file);
         {
+          // The generators' change (and its settle) runs inside the pump too (see Step2Frame).
           LivePump pump(inst_.cam.get(), options_.on_live_frame, 1, i);
+          Play(Step1Signals(plan_), f.file);
           operator_.PrepareStep1Frame(i);
         }
         store::FrameRecord record;
@@ -973,7 +977,7 @@ class SessionController {
     const auto r = [&] {
       // Nothing else takes frames during the background recording: the live view keeps its
       // camera image (issue 19; the view downscales and paces it, LiveViewOptions).
-      LivePump pump(inst_.cam.get(), options_.on_live_frame, 0, 0);
+      LivePump pump(inst_.cam.get(), options_.on_live_frame, 0, 0, "background");
       return RecordHall(*inst_.mcu, out_ / "hall" / "background.csv", options_,
                         options_.background_seconds, nullptr);
     }();
@@ -1015,9 +1019,12 @@ class SessionController {
     const auto& f = plan_.step2[i];
     FrameOutcome fo;
     if (!FromJournal(f.file, &fo)) {
-      Play(Step2Signals(plan_, f), f.file);
       {
+        // Play (a new laser arb, drives switched and their settle of drive_settle_periods
+        // pattern periods) uses only the generators: the live view keeps the camera meanwhile,
+        // so during the actual Hall recording the page never stands still for a settle.
         LivePump pump(inst_.cam.get(), options_.on_live_frame, 2, i);
+        Play(Step2Signals(plan_, f), f.file);
         operator_.PrepareStep2Frame(i);
       }
       store::FrameRecord record;

@@ -64,12 +64,13 @@ struct FrameReport {
 };
 using FrameObserver = std::function<void(const FrameReport&)>;
 
-// A frame streamed while the orchestrator waits for the person at the rig (the live view, issue
-// 19): during every RigOperator::Prepare* call made once the camera streams, a pump thread grabs
-// the free-running camera's frames and hands each to OrchestratorOptions::on_live_frame. The
-// pump is stopped and joined before Prepare* returns to the orchestrator, which then grabs
-// again itself; a live frame is never a session frame and is never gated nor journalled.
-// Pointers are valid during the call only.
+// A frame streamed while the orchestrator waits for the person at the rig or for the generators
+// (the live view, issue 19): during every RigOperator::Prepare* call made once the camera
+// streams, and during each frame's generator change before it (a new laser pattern, the drives
+// switched and their settle), a pump thread grabs the free-running camera's frames and hands
+// each to OrchestratorOptions::on_live_frame. The pump is stopped and joined before the
+// orchestrator grabs again itself; a live frame is never a session frame and is never gated
+// nor journalled. Pointers are valid during the call only.
 struct LiveFrame {
   // The frame the operator is setting up: step 1 or 2 and its index into the plan's step1 /
   // step2 list; step 0 while a Hall recording is set up (no frame follows directly).
@@ -77,6 +78,9 @@ struct LiveFrame {
   size_t index = 0;
   const cv::Mat* image = nullptr;  // as grabbed (FrameToMat: Mono8/Mono16/RGB8)
   int64_t host_timestamp_ns = 0;   // camera::FrameInfo::host_timestamp_ns
+  // The Hall recording running while this frame was streamed ("background"), empty when none:
+  // known from the pump itself, so its first frame already says so.
+  std::string hall_recording;
 };
 // Called on the pump thread, never concurrently with itself; it may run concurrently with the
 // ProgressFn and the RigStatusObserver (the orchestrator's thread) but not with on_frame (the

@@ -165,8 +165,9 @@ std::vector<ValidationDetailRow> ValidationDetailRows(
   return rows;
 }
 
-std::vector<ValidationDetailRow> ReadValidationDetailCsv(const fs::path& file) {
-  interchange::CsvReader csv(file, file.string(), {kValidationDetailHeader});
+namespace {
+
+std::vector<ValidationDetailRow> DetailRows(interchange::CsvReader& csv) {
   std::vector<ValidationDetailRow> rows;
   while (csv.Next()) {
     rows.push_back({csv.Int(0), csv.Int(1), csv.Double(2), csv.Double(3), csv.Double(4),
@@ -175,12 +176,74 @@ std::vector<ValidationDetailRow> ReadValidationDetailCsv(const fs::path& file) {
   return rows;
 }
 
-void WriteValidationDetailCsv(const fs::path& file, const std::vector<ValidationDetailRow>& rows) {
+std::vector<ValidationDotRow> DotRows(interchange::CsvReader& csv) {
+  std::vector<ValidationDotRow> rows;
+  while (csv.Next()) {
+    ValidationDotRow r;
+    r.beam = csv.Int(0);
+    r.j = csv.Int(1);
+    r.observed_px = {csv.Double(2), csv.Double(3)};
+    r.predicted_px = {csv.Double(4), csv.Double(5)};
+    // Every cell read before the comma initializer: a cell that throws inside it would leave
+    // Eigen's initializer incomplete, and its destructor asserts (an abort where assertions are
+    // on, as in the fuzz build) instead of the error naming file, line and column.
+    const double xx = csv.Double(6), xy = csv.Double(7), yy = csv.Double(8);
+    r.cov_px2 << xx, xy, xy, yy;
+    r.joint_whitened = {csv.Double(9), csv.Double(10)};
+    rows.push_back(r);
+  }
+  return rows;
+}
+
+std::vector<solver::WhitenedResidual> ResidualRows(interchange::CsvReader& csv) {
+  std::vector<solver::WhitenedResidual> rows;
+  while (csv.Next()) {
+    solver::WhitenedResidual r;
+    r.family = csv.Int(0);
+    if (r.family < 0 || r.family >= solver::kNumFamilies)
+      throw interchange::InterchangeError(csv.display() + ":" + std::to_string(csv.line()) +
+                                          ": column 'family': " + std::to_string(r.family) +
+                                          " is not a residual family (0.." +
+                                          std::to_string(solver::kNumFamilies - 1) + ")");
+    r.group = csv.Int(1);
+    r.observed_px = {csv.Double(2), csv.Double(3)};
+    r.whitened = {csv.Double(4), csv.Double(5)};
+    rows.push_back(r);
+  }
+  return rows;
+}
+
+std::vector<HallPoseRow> HallPoseRows(interchange::CsvReader& csv) {
+  std::vector<HallPoseRow> rows;
+  while (csv.Next())
+    rows.push_back({csv.Double(0), csv.Double(1), csv.Double(2), csv.Double(3), csv.Double(4)});
+  return rows;
+}
+
+}  // namespace
+
+std::vector<ValidationDetailRow> ReadValidationDetailCsv(const fs::path& file) {
+  interchange::CsvReader csv(file, file.string(), {kValidationDetailHeader});
+  return DetailRows(csv);
+}
+
+std::vector<ValidationDetailRow> ParseValidationDetailCsv(const std::string& text,
+                                                          const std::string& display_name) {
+  interchange::CsvReader csv(interchange::CsvReader::Text{text}, display_name,
+                             {kValidationDetailHeader});
+  return DetailRows(csv);
+}
+
+std::string FormatValidationDetailCsv(const std::vector<ValidationDetailRow>& rows) {
   std::string out = std::string(kValidationDetailHeader) + "\n";
   for (const auto& r : rows)
     common::AppendCsvRow(&out, r.beam, r.j, r.err_px, r.err_deg, r.baseline_err_px,
                          r.baseline_err_deg, r.predicted_sigma_px, r.normalised_error);
-  common::WriteFileAtomically(file, out);
+  return out;
+}
+
+void WriteValidationDetailCsv(const fs::path& file, const std::vector<ValidationDetailRow>& rows) {
+  common::WriteFileAtomically(file, FormatValidationDetailCsv(rows));
 }
 
 std::vector<ValidationDotRow> ValidationDotRows(
@@ -194,69 +257,72 @@ std::vector<ValidationDotRow> ValidationDotRows(
 
 std::vector<ValidationDotRow> ReadValidationDotsCsv(const fs::path& file) {
   interchange::CsvReader csv(file, file.string(), {kValidationDotsHeader});
-  std::vector<ValidationDotRow> rows;
-  while (csv.Next()) {
-    ValidationDotRow r;
-    r.beam = csv.Int(0);
-    r.j = csv.Int(1);
-    r.observed_px = {csv.Double(2), csv.Double(3)};
-    r.predicted_px = {csv.Double(4), csv.Double(5)};
-    r.cov_px2 << csv.Double(6), csv.Double(7), csv.Double(7), csv.Double(8);
-    r.joint_whitened = {csv.Double(9), csv.Double(10)};
-    rows.push_back(r);
-  }
-  return rows;
+  return DotRows(csv);
 }
 
-void WriteValidationDotsCsv(const fs::path& file, const std::vector<ValidationDotRow>& rows) {
+std::vector<ValidationDotRow> ParseValidationDotsCsv(const std::string& text,
+                                                     const std::string& display_name) {
+  interchange::CsvReader csv(interchange::CsvReader::Text{text}, display_name,
+                             {kValidationDotsHeader});
+  return DotRows(csv);
+}
+
+std::string FormatValidationDotsCsv(const std::vector<ValidationDotRow>& rows) {
   std::string out = std::string(kValidationDotsHeader) + "\n";
   for (const auto& r : rows)
     common::AppendCsvRow(&out, r.beam, r.j, r.observed_px.x(), r.observed_px.y(),
                          r.predicted_px.x(), r.predicted_px.y(), r.cov_px2(0, 0), r.cov_px2(0, 1),
                          r.cov_px2(1, 1), r.joint_whitened.x(), r.joint_whitened.y());
-  common::WriteFileAtomically(file, out);
+  return out;
+}
+
+void WriteValidationDotsCsv(const fs::path& file, const std::vector<ValidationDotRow>& rows) {
+  common::WriteFileAtomically(file, FormatValidationDotsCsv(rows));
 }
 
 std::vector<solver::WhitenedResidual> ReadResidualsCsv(const fs::path& file) {
   interchange::CsvReader csv(file, file.string(), {kResidualsHeader});
-  std::vector<solver::WhitenedResidual> rows;
-  while (csv.Next()) {
-    solver::WhitenedResidual r;
-    r.family = csv.Int(0);
-    if (r.family < 0 || r.family >= solver::kNumFamilies)
-      throw interchange::InterchangeError(file.string() + ":" + std::to_string(csv.line()) +
-                                          ": column 'family': " + std::to_string(r.family) +
-                                          " is not a residual family (0.." +
-                                          std::to_string(solver::kNumFamilies - 1) + ")");
-    r.group = csv.Int(1);
-    r.observed_px = {csv.Double(2), csv.Double(3)};
-    r.whitened = {csv.Double(4), csv.Double(5)};
-    rows.push_back(r);
-  }
-  return rows;
+  return ResidualRows(csv);
 }
 
-void WriteResidualsCsv(const fs::path& file, const std::vector<solver::WhitenedResidual>& rows) {
+std::vector<solver::WhitenedResidual> ParseResidualsCsv(const std::string& text,
+                                                        const std::string& display_name) {
+  interchange::CsvReader csv(interchange::CsvReader::Text{text}, display_name, {kResidualsHeader});
+  return ResidualRows(csv);
+}
+
+std::string FormatResidualsCsv(const std::vector<solver::WhitenedResidual>& rows) {
   std::string out = std::string(kResidualsHeader) + "\n";
   for (const auto& r : rows)
     common::AppendCsvRow(&out, r.family, r.group, r.observed_px.x(), r.observed_px.y(),
                          r.whitened.x(), r.whitened.y());
-  common::WriteFileAtomically(file, out);
+  return out;
+}
+
+void WriteResidualsCsv(const fs::path& file, const std::vector<solver::WhitenedResidual>& rows) {
+  common::WriteFileAtomically(file, FormatResidualsCsv(rows));
 }
 
 std::vector<HallPoseRow> ReadHallPosesCsv(const fs::path& file) {
   interchange::CsvReader csv(file, file.string(), {kHallPosesHeader});
-  std::vector<HallPoseRow> rows;
-  while (csv.Next())
-    rows.push_back({csv.Double(0), csv.Double(1), csv.Double(2), csv.Double(3), csv.Double(4)});
-  return rows;
+  return HallPoseRows(csv);
 }
 
-void WriteHallPosesCsv(const fs::path& file, const std::vector<HallPoseRow>& rows) {
+std::vector<HallPoseRow> ParseHallPosesCsv(const std::string& text,
+                                           const std::string& display_name) {
+  interchange::CsvReader csv(interchange::CsvReader::Text{text}, display_name, {kHallPosesHeader});
+  return HallPoseRows(csv);
+}
+
+std::string FormatHallPosesCsv(const std::vector<HallPoseRow>& rows) {
   std::string out = std::string(kHallPosesHeader) + "\n";
   for (const auto& r : rows)
     common::AppendCsvRow(&out, r.mcu_time_us, r.t_s, r.alpha_deg, r.beta_deg, r.trans_mm);
-  common::WriteFileAtomically(file, out);
+  return out;
+}
+
+void WriteHallPosesCsv(const fs::path& file, const std::vector<HallPoseRow>& rows) {
+  common::WriteFileAtomically(file, FormatHallPosesCsv(rows));
 }
 
 // ------------------------------------------------------------------------------ summary.json

@@ -64,6 +64,9 @@ std::vector<ValidationDetailRow> ValidationDetailRows(
 std::vector<ValidationDetailRow> ReadValidationDetailCsv(const std::filesystem::path& file);
 void WriteValidationDetailCsv(const std::filesystem::path& file,
                               const std::vector<ValidationDetailRow>& rows);
+std::vector<ValidationDetailRow> ParseValidationDetailCsv(const std::string& text,
+                                                          const std::string& display_name);
+std::string FormatValidationDetailCsv(const std::vector<ValidationDetailRow>& rows);
 
 // results/validation_dots.csv (native): per held-out dot, in validation_detail.csv's order, where
 // it is on the image (px, (0, 0) at the centre of the top-left pixel) as measured and as the
@@ -82,6 +85,9 @@ std::vector<ValidationDotRow> ValidationDotRows(
 std::vector<ValidationDotRow> ReadValidationDotsCsv(const std::filesystem::path& file);
 void WriteValidationDotsCsv(const std::filesystem::path& file,
                             const std::vector<ValidationDotRow>& rows);
+std::vector<ValidationDotRow> ParseValidationDotsCsv(const std::string& text,
+                                                     const std::string& display_name);
+std::string FormatValidationDotsCsv(const std::vector<ValidationDotRow>& rows);
 
 // results/residuals.csv (native): every residual the MLE fitted, whitened by the covariance it
 // used (solver::WhitenedResidual): family (solver::MleFamily: 0 corners_c1_world,
@@ -91,6 +97,14 @@ void WriteValidationDotsCsv(const std::filesystem::path& file,
 std::vector<solver::WhitenedResidual> ReadResidualsCsv(const std::filesystem::path& file);
 void WriteResidualsCsv(const std::filesystem::path& file,
                        const std::vector<solver::WhitenedResidual>& rows);
+std::vector<solver::WhitenedResidual> ParseResidualsCsv(const std::string& text,
+                                                        const std::string& display_name);
+std::string FormatResidualsCsv(const std::vector<solver::WhitenedResidual>& rows);
+// Each native CSV above and hall_poses.csv below has a text entry point beside its file one,
+// as the three interchange CSVs have (the fuzz target fuzz/results_csv_fuzz.cc uses them):
+// Parse*Csv(text, display_name) reads what Read*Csv reads (`display_name` stands for the file
+// in messages); Format*Csv(rows) is the text Write*Csv writes, and
+// Parse*Csv(Format*Csv(rows), name) gives rows back.
 
 // ------------------------------------------------------------------- summary.json mirror_poses
 
@@ -166,5 +180,8 @@ struct HallPoseRow {
 };
 std::vector<HallPoseRow> ReadHallPosesCsv(const std::filesystem::path& file);
 void WriteHallPosesCsv(const std::filesystem::path& file, const std::vector<HallPoseRow>& rows);
+std::vector<HallPoseRow> ParseHallPosesCsv(const std::string& text,
+                                           const std::string& display_name);
+std::string FormatHallPosesCsv(const std::vector<HallPoseRow>& rows);
 
 }  // namespace msmcal::results

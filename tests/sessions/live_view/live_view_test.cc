@@ -7,8 +7,10 @@
 #include <gtest/gtest.h>
 #include <httplib.h>
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
+#include <filesystem>
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
@@ -18,8 +20,8 @@
 
 #include "sessions/live_view/live_server.h"
 #include "sessions/live_view/web_operator.h"
-#include "sessions/setup/setup.h"
 #include "sessions/orchestrator/console_operator.h"
+#include "sessions/setup/setup.h"
 
 namespace msmcal::live_view {
 namespace {
@@ -225,6 +227,34 @@ TEST(LiveView, LiveFramesAreGatedForTheFrameBeingSetUpAndDrawn) {
   EXPECT_GT(cv::countNonZero(magenta), 50);
 }
 
+// A live frame the pump streams during a Hall recording says so itself: it is shown as the
+// camera image only (no board search) even before the rig's status reports the recording (the
+// first frames of the background recording used to get the slow set-up board search, which
+// under load could hold the pump for the whole recording: cli.live_view_twin_http).
+TEST(LiveView, LiveFramesOfAHallRecordingAreTheImageOnlyFromTheFirst) {
+  const dataset::Recording plan = SmallPlan();
+  LiveViewOptions o;
+  o.max_live_fps = 1000;
+  const cv::Mat board = Checkerboard(7, 5, 30, 400, 300);
+  orchestrator::LiveFrame f;
+  f.step = 0;
+  f.image = &board;
+  {
+    LiveView view(plan, o);
+    view.MakeLiveFrameObserver()(f);  // a recording's set-up: the boards searched
+    const json s = State(view);
+    EXPECT_EQ(s["live"]["caption"], "LIVE (Hall recording set-up)");
+    EXPECT_EQ(s["live"]["boards_found"], json::array({true}));
+  }
+  f.hall_recording = "background";
+  LiveView view(plan, o);  // no rig status: the view does not know of the recording
+  view.MakeLiveFrameObserver()(f);
+  const json s = State(view);
+  EXPECT_TRUE(s["rig"]["hall_recording"].get<std::string>().empty());
+  EXPECT_EQ(s["live"]["caption"], "LIVE (Hall background recording running: camera image only)");
+  EXPECT_EQ(s["live"]["boards_found"], json::array());
+}
+
 TEST(LiveView, GateDecisionsGiveTheFiguresProgressAndEta) {
   const dataset::Recording plan = SmallPlan();
   LiveView view(plan, {});
@@ -269,6 +299,7 @@ TEST(LiveView, RigStatusGivesTheHallRateAndTheOutputs) {
   st.reference_locked = true;
   rig(st);
   EXPECT_EQ(State(view)["rig"]["outputs_on"], true);
+  EXPECT_EQ(State(view)["rig"]["reference_locked"], true);
   st.hall_recording = "actual";
   st.hall_readings = 100;
   rig(st);
@@ -284,6 +315,24 @@ TEST(LiveView, RigStatusGivesTheHallRateAndTheOutputs) {
   st = {};
   rig(st);
   EXPECT_EQ(State(view)["rig"]["outputs_on"], false);
+}
+
+// The rig's "disk left": the free space of the session folder's file system, as the system
+// reports it to this user; null without a folder (nothing invented).
+TEST(LiveView, DiskLeftIsTheSessionFoldersFreeSpace) {
+  const dataset::Recording plan = SmallPlan();
+  EXPECT_TRUE(State(LiveView(plan, {}))["rig"]["disk_free_bytes"].is_null());
+  LiveViewOptions options;
+  options.disk_path = ::testing::TempDir();
+  LiveView view(plan, options);
+  const json free_bytes = State(view)["rig"]["disk_free_bytes"];
+  ASSERT_TRUE(free_bytes.is_number()) << free_bytes;
+  const double available = static_cast<double>(std::filesystem::space(options.disk_path).available);
+  ASSERT_GT(available, 0.0);
+  // Other processes write meanwhile: equal to within 1 % or 64 MB.
+  EXPECT_NEAR(free_bytes.get<double>(), available, std::max(0.01 * available, 64e6));
+  options.disk_path = "/nonexistent/session";
+  EXPECT_TRUE(State(LiveView(plan, options))["rig"]["disk_free_bytes"].is_null());
 }
 
 // --- WebOperator ---

@@ -11,6 +11,8 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <map>
+#include <mutex>
 #include <opencv2/imgcodecs.hpp>
 #include <sstream>
 
@@ -330,6 +332,78 @@ TEST(Orchestrator, AnMcuResetDuringARecordingStopsTheSessionInTheSafeState) {
       EXPECT_NE(state, store::StepState::kDone);
     }
   }
+}
+
+// The simulated world as the operator, with a hook called before each step-2 frame's Prepare
+// (the orchestrator has played that frame's signals by then: the drives have settled).
+class HookedWorld : public RigOperator {
+ public:
+  HookedWorld(RigOperator& world, std::function<void(size_t)> before_step2)
+      : world_(world), before_step2_(std::move(before_step2)) {}
+  void PrepareStep1Frame(size_t index) override { world_.PrepareStep1Frame(index); }
+  void PrepareStep2Frame(size_t index) override {
+    before_step2_(index);
+    world_.PrepareStep2Frame(index);
+  }
+  bool FrameShowsCurrentSetup(const camera::FrameInfo& info) const override {
+    return world_.FrameShowsCurrentSetup(info);
+  }
+  std::string PrepareHallRecording(HallRun run) override {
+    return world_.PrepareHallRecording(run);
+  }
+
+ private:
+  RigOperator& world_;
+  std::function<void(size_t)> before_step2_;
+};
+
+// The live view keeps the camera while the generators change during the actual Hall recording
+// (issue 19): a step-2 frame that switches the drives waits drive_settle_periods pattern
+// periods (1 s here) before it is taken, and the preview pump streams that frame's live images
+// all the while. (The pump used to start only at the operator's Prepare call, after the settle:
+// no live image at all during it, the page stood still at every drive change.)
+TEST(Orchestrator, TheLivePumpStreamsThroughEveryDriveSettleOfStep2) {
+  DemoRigOptions ro;
+  ro.sim = TinySim();
+  DemoRig rig(ro);
+  OrchestratorOptions options = rig.MakeOrchestratorOptions(FreshDir("live_settle"));
+  ASSERT_GT(options.drive_settle_periods, 0);
+  const dataset::Recording plan = rig.Plan();
+  std::mutex mu;
+  int settling = -1;                  // the step-2 frame whose drives settle now (-1: none)
+  std::vector<size_t> settled;        // step-2 frames that switched the drives, in order
+  std::map<size_t, int> live_during;  // live images of frame i received during its settle
+  int live_total = 0;
+  options.on_live_frame = [&](const LiveFrame& f) {
+    ASSERT_NE(f.image, nullptr);
+    EXPECT_FALSE(f.image->empty());
+    std::lock_guard<std::mutex> lock(mu);
+    ++live_total;
+    if (settling >= 0 && f.step == 2 && f.index == static_cast<size_t>(settling))
+      ++live_during[f.index];
+  };
+  HookedWorld world(rig.world(), [&](size_t i) {
+    std::lock_guard<std::mutex> lock(mu);
+    EXPECT_TRUE(settling < 0 || static_cast<size_t>(settling) == i);
+    settling = -1;
+  });
+  RunSession(options, plan, world, [&](const std::string& line) {
+    // "generators: step2/0001.png: fast drive on, slow drive off; settling 1 s (5 pattern
+    // periods)", logged just before the settle.
+    if (line.find("; settling ") == std::string::npos) return;
+    for (size_t i = 0; i < plan.step2.size(); ++i) {
+      if (line.find("generators: " + plan.step2[i].file + ":") == std::string::npos) continue;
+      std::lock_guard<std::mutex> lock(mu);
+      settling = static_cast<int>(i);
+      settled.push_back(i);
+    }
+  });
+  // TinySim's step 2: neutral (drives off, as in step 1), fast-only, then scan frames: the
+  // drives switch at least twice.
+  ASSERT_GE(settled.size(), 2u);
+  for (size_t i : settled)
+    EXPECT_GE(live_during[i], 1) << plan.step2[i].file << ": no live image during its settle";
+  EXPECT_GT(live_total, 0);
 }
 
 TEST(Orchestrator, SessionSignalsPlayThePlansTriggerTableAndRefuseAnotherPeriod) {
