@@ -1,5 +1,6 @@
 #include "sessions/report/sweep_report.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <functional>
@@ -130,8 +131,11 @@ SweepReport BuildSweepReport(const fs::path& dir, const sweep::SweepPlan& plan,
        [](const SessionReport& r) { return r.have_planes ? r.validation_rms_deg : NAN; }},
       {"hall", "Hall test RMS alpha (deg)",
        [](const SessionReport& r) { return r.have_hall ? r.test_rms[0] : NAN; }},
-      {"delta-t", "delta_t (ms)",
-       [](const SessionReport& r) { return r.have_hall ? r.delta_t_s * 1e3 : NAN; }}};
+      {"delta-t", "delta_t (ms, identified points only)",
+       [](const SessionReport& r) {
+         return r.have_hall && r.delta_t_identified ? r.delta_t_s * 1e3 : NAN;
+       }}};
+  std::vector<std::string> not_plotted;  // metrics no point has a figure of
   for (size_t a = 0; a < plan.axes.size(); ++a) {
     std::map<std::string, double> rank;
     bool numeric = true;
@@ -157,6 +161,12 @@ SweepReport BuildSweepReport(const fs::path& dir, const sweep::SweepPlan& plan,
         s.x.push_back(numeric ? std::strtod(v.c_str(), nullptr) : rank[v]);
         s.y.push_back(m.value(figures[i].report));
       }
+      if (std::none_of(s.y.begin(), s.y.end(), [](double y) { return std::isfinite(y); })) {
+        // Nothing to draw (no point has this figure: no truth, no Hall model, delta_t not
+        // identified): said in a line instead of an empty plot.
+        not_plotted.push_back(std::string(m.label) + " against " + axis);
+        continue;
+      }
       c.series = {s};
       c.caption = "One dot per point (repeats included).";
       rep.charts.push_back(c);
@@ -177,7 +187,14 @@ SweepReport BuildSweepReport(const fs::path& dir, const sweep::SweepPlan& plan,
   h << "<h2>Points</h2>" << RenderTable(t);
   h << "<h2>Figures against the swept settings</h2><div class=\"plots\">";
   for (const auto& c : rep.charts) h << RenderChartPlace(c);
-  h << "</div>\n<p class=\"sub\">Plots: " << PlottingLibraryDescription() << ".</p>";
+  h << "</div>\n";
+  if (!not_plotted.empty()) {
+    h << "<p class=\"sub\" id=\"not-plotted\">Not plotted, no point has a figure of it: ";
+    for (size_t i = 0; i < not_plotted.size(); ++i)
+      h << (i ? "; " : "") << HtmlEscape(not_plotted[i]);
+    h << ".</p>\n";
+  }
+  h << "<p class=\"sub\">Plots: " << PlottingLibraryDescription() << ".</p>";
   rep.html = RenderPage("msmcal sweep report: " + dir.filename().string(), h.str(), rep.charts);
   return rep;
 }
