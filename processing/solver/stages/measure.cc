@@ -118,16 +118,21 @@ std::vector<ImageMeasurement> MeasureImages(
 // squares, of the plate's corners and edges): a blob found at the same place, within
 // `radius_px`, in images of one static group whose light (`light[i]`: step 1 the unblocked
 // beams, step 2 the (beam, trigger) pairs; sorted) has nothing in common cannot be any of their
-// spots. Dropped from every image of the group that shows it; the count goes to
-// dot_rejections.static_blob and dots_on_plane is recounted.
+// spots. In step 2 (`every_view[g]`) it must be in every image of the group: the mirror takes
+// one orientation at several pattern times (the Lissajous figure's crossings; a fast-only
+// pattern passes through neutral), so two triggers' dots can coincide. Dropped from every
+// image of the group that shows it; the count goes to dot_rejections.static_blob and
+// dots_on_plane is recounted.
 void DropStaticBlobs(const std::vector<std::vector<size_t>>& groups,
                      const std::vector<std::vector<vision::BoardSize>>& sizes,
-                     const std::vector<std::vector<int>>& light, const PipelineOptions& o,
+                     const std::vector<std::vector<int>>& light,
+                     const std::vector<char>& every_view, const PipelineOptions& o,
                      std::vector<ImageMeasurement>* measured) {
   if (o.static_blob_radius_px <= 0) return;
   const double r2 = o.static_blob_radius_px * o.static_blob_radius_px;
-  for (const auto& group : groups) {
-    if (group.size() < 2) continue;
+  for (size_t g = 0; g < groups.size(); ++g) {
+    const auto& group = groups[g];
+    if (group.size() < (every_view[g] ? 3u : 2u)) continue;
     std::map<size_t, std::vector<char>> drop;
     for (size_t i : group) {
       const auto& dots = (*measured)[i].dots;
@@ -135,21 +140,23 @@ void DropStaticBlobs(const std::vector<std::vector<size_t>>& groups,
       mine.assign(dots.size(), 0);
       for (size_t k = 0; k < dots.size(); ++k) {
         std::vector<int> common = light[i];
-        bool seen_elsewhere = false;
+        bool seen_elsewhere = false, in_every_view = true;
         for (size_t j : group) {
           if (j == i) continue;
           const auto& other = (*measured)[j].dots;
           if (std::none_of(other.begin(), other.end(), [&](const vision::Dot& e) {
                 return (e.px - dots[k].px).squaredNorm() <= r2;
-              }))
+              })) {
+            in_every_view = false;
             continue;
+          }
           seen_elsewhere = true;
           std::vector<int> both;
           std::set_intersection(common.begin(), common.end(), light[j].begin(), light[j].end(),
                                 std::back_inserter(both));
           common.swap(both);
         }
-        mine[k] = seen_elsewhere && common.empty();
+        mine[k] = seen_elsewhere && common.empty() && (in_every_view || !every_view[g]);
       }
     }
     for (size_t i : group) {
@@ -525,7 +532,9 @@ RecordingMeasurement MeasureRecording(const dataset::Recording& rec, const Image
         std::sort(l.begin(), l.end());
         light.push_back(std::move(l));
       }
-      DropStaticBlobs(static_groups, asks, light, o, &measured);
+      std::vector<char> every_view(static_groups.size(), 0);
+      every_view.back() = 1;  // step 2
+      DropStaticBlobs(static_groups, asks, light, every_view, o, &measured);
       if (o.background_dots) {
         std::vector<std::vector<int>> step1_beams;
         for (const auto& f : rec.step1) step1_beams.push_back(f.beams);
