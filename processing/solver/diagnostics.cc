@@ -73,7 +73,8 @@ std::vector<std::string> DetectionsCsvColumns() {
           "rejected_off_plane",
           "rejected_at_corner",
           "rejected_surface_elongated",
-          "fit_fallbacks"};
+          "fit_fallbacks",
+          "rejected_static"};
 }
 
 std::string FormatDetectionsCsv(const std::vector<FrameDetection>& detections) {
@@ -99,7 +100,8 @@ std::string FormatDetectionsCsv(const std::vector<FrameDetection>& detections) {
       << d.dots_expected << ',' << d.rejected.too_small << ',' << d.rejected.too_large << ','
       << d.rejected.elongated << ',' << d.rejected.saturated << ',' << d.rejected.not_green << ','
       << d.rejected.too_faint << ',' << d.off_plane << ',' << d.junction << ','
-      << d.surface_elongated << ',' << d.rejected.fit_fallbacks << '\n';
+      << d.surface_elongated << ',' << d.rejected.fit_fallbacks << ',' << d.rejected.static_blob
+      << '\n';
   }
   return s.str();
 }

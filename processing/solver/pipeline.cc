@@ -33,6 +33,8 @@ std::string PipelineOptions::Validate() const {
     s << "junction_exclusion_squares = " << junction_exclusion_squares << " must be in [0, 1]";
   else if (!(adaptive_min_relative_peak >= 0 && adaptive_min_relative_peak < 1))
     s << "adaptive_min_relative_peak = " << adaptive_min_relative_peak << " must be in [0, 1)";
+  else if (!(static_blob_radius_px >= 0 && static_blob_radius_px <= 100))
+    s << "static_blob_radius_px = " << static_blob_radius_px << " must be in [0, 100]";
   else if (max_surplus_dots < 0 || max_surplus_dots > 50)
     s << "max_surplus_dots = " << max_surplus_dots << " must be in [0, 50]";
   else if (!(max_group_residual_px > 0))

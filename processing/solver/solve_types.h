@@ -79,6 +79,11 @@ struct PipelineOptions {
   // squares and in blur are blobs on a flat floor, and board residue is gone. Kept where it
   // comes closer to the expected count on the board's plane.
   bool background_dots = true;
+  // Blobs at the same place (within this radius, px) in images of one static group whose light
+  // has nothing in common (step 1: beams; step 2: beam and trigger) are the scene's structure,
+  // not spots (board-square and plate-corner residue of the top-hat), and are dropped before
+  // the third pass. 0: off.
+  double static_blob_radius_px = 1.0;
   // Trigger-index assignment inside multi-trigger frames (RANSAC over a drive-phase model).
   int ransac_iterations = 3000;
   double ransac_inlier_deg = 0.4;

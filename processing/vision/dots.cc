@@ -97,6 +97,15 @@ inline bool Saturated(const T* row, int x, int full) {
   }
 }
 
+// BGR: the pixel's green is clipped, its blue and red are not, and (over a background: a
+// non-null `difference_row`) the spot raised its green.
+template <typename T>
+inline bool GreenClipsAlone(const T* image_row, const T* difference_row, int x, int full) {
+  const T* p = image_row + 3 * x;
+  return p[1] >= full && p[0] < full && p[2] < full &&
+         (difference_row == nullptr || difference_row[3 * x + 1] > 0);
+}
+
 struct Accumulator {
   double sw = 0, sw2 = 0, sx = 0, sy = 0, sxx = 0, sxy = 0, syy = 0;
   int n = 0, saturated = 0;
@@ -569,6 +578,18 @@ std::vector<Dot> DetectDotsImpl(const cv::Mat& image, const cv::Mat& background,
   }
   // Pixels at or above the threshold: the flood fill's seeds and extent.
   cv::compare(signal, threshold, candidates, cv::CMP_GE);
+  // A spot that clips on a light square shows no more than that square's headroom (full scale
+  // minus its level), which can be below the threshold: saturated pixels count where their
+  // signal reaches half of it (flat areas that clip in the background too show no signal).
+  {
+    thread_local cv::Mat1b clipped, rising;
+    cv::compare(mono, full, clipped, cv::CMP_GE);
+    if (cv::countNonZero(clipped) > 0) {
+      cv::compare(signal, std::max(1, threshold / 2), rising, cv::CMP_GE);
+      cv::bitwise_and(clipped, rising, clipped);
+      cv::bitwise_or(candidates, clipped, candidates);
+    }
+  }
   DotRejections local;
   std::vector<Dot> dots =
       mono.depth() == CV_8U
@@ -589,6 +610,25 @@ std::vector<Dot> DetectDotsImpl(const cv::Mat& image, const cv::Mat& background,
       // blue or red is saturated too raises green alone (the absolute excess is ~0 there).
       if (best < min_excess && background.empty())
         best = std::max(best, RelativeGreenExcess(image, d.blob_box, options.background_kernel_px));
+      // Where the image's green clips and blue and red do not, the green rise is only a lower
+      // bound of what the spot added (a light square's headroom): green light that clipped the
+      // channel it is seen in.
+      if (best < min_excess && d.saturated_pixels > 0)
+        for (int y = d.blob_box.y; y < d.blob_box.y + d.blob_box.height && best < min_excess; ++y)
+          for (int x = d.blob_box.x; x < d.blob_box.x + d.blob_box.width; ++x) {
+            const bool clipped_green_only =
+                image.depth() == CV_8U
+                    ? GreenClipsAlone(image.ptr<uint8_t>(y),
+                                      background.empty() ? nullptr : difference.ptr<uint8_t>(y), x,
+                                      full)
+                    : GreenClipsAlone(image.ptr<uint16_t>(y),
+                                      background.empty() ? nullptr : difference.ptr<uint16_t>(y), x,
+                                      full);
+            if (clipped_green_only) {
+              best = min_excess;
+              break;
+            }
+          }
       if (best >= min_excess) {
         green_dots.push_back(d);
       } else {

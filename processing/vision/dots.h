@@ -90,6 +90,9 @@ struct DotRejections {
   int not_green = 0;      // BGR: blobs nowhere greener than blue and red
   int too_faint = 0;      // second (adaptive) pass: far fainter than the frame's brightest spot
   int fit_fallbacks = 0;  // kept dots whose Gaussian fit was not used (centroid kept)
+  // Found at the same place in images of one static scene whose light has nothing in common:
+  // the scene's own structure (solver: PipelineOptions::static_blob_radius_px).
+  int static_blob = 0;
 };
 
 // Every blob the detector looked at, with its fate (msmcal solve --explain).

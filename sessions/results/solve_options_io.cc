@@ -83,6 +83,8 @@ std::vector<Knob> Knobs(solver::PipelineOptions& o) {
        "in that pass, refuse blobs fainter than this fraction of the frame's brightest"},
       {"background_dots", &o.background_dots,
        "measure a frame still short of dots on its difference from its static scene"},
+      {"static_blob_radius_px", &o.static_blob_radius_px,
+       "drop blobs at one place in frames whose light differs (scene structure); 0: off"},
       {"max_surplus_dots", &o.max_surplus_dots,
        "step 2: extra blobs a frame may have and still be grouped"},
       {"max_group_residual_px", &o.max_group_residual_px,

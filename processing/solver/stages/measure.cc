@@ -114,6 +114,71 @@ std::vector<ImageMeasurement> MeasureImages(
   return out;
 }
 
+// Blobs that are the scene's own structure, not laser light (the top-hat's residue of board
+// squares, of the plate's corners and edges): a blob found at the same place, within
+// `radius_px`, in images of one static group whose light (`light[i]`: step 1 the unblocked
+// beams, step 2 the (beam, trigger) pairs; sorted) has nothing in common cannot be any of their
+// spots. In step 2 (`every_view[g]`) it must be in every image of the group: the mirror takes
+// one orientation at several pattern times (the Lissajous figure's crossings; a fast-only
+// pattern passes through neutral), so two triggers' dots can coincide. Dropped from every
+// image of the group that shows it; the count goes to dot_rejections.static_blob and
+// dots_on_plane is recounted.
+void DropStaticBlobs(const std::vector<std::vector<size_t>>& groups,
+                     const std::vector<std::vector<vision::BoardSize>>& sizes,
+                     const std::vector<std::vector<int>>& light,
+                     const std::vector<char>& every_view, const PipelineOptions& o,
+                     std::vector<ImageMeasurement>* measured) {
+  if (o.static_blob_radius_px <= 0) return;
+  const double r2 = o.static_blob_radius_px * o.static_blob_radius_px;
+  for (size_t g = 0; g < groups.size(); ++g) {
+    const auto& group = groups[g];
+    if (group.size() < (every_view[g] ? 3u : 2u)) continue;
+    std::map<size_t, std::vector<char>> drop;
+    for (size_t i : group) {
+      const auto& dots = (*measured)[i].dots;
+      std::vector<char>& mine = drop[i];
+      mine.assign(dots.size(), 0);
+      for (size_t k = 0; k < dots.size(); ++k) {
+        std::vector<int> common = light[i];
+        bool seen_elsewhere = false, in_every_view = true;
+        for (size_t j : group) {
+          if (j == i) continue;
+          const auto& other = (*measured)[j].dots;
+          if (std::none_of(other.begin(), other.end(), [&](const vision::Dot& e) {
+                return (e.px - dots[k].px).squaredNorm() <= r2;
+              })) {
+            in_every_view = false;
+            continue;
+          }
+          seen_elsewhere = true;
+          std::vector<int> both;
+          std::set_intersection(common.begin(), common.end(), light[j].begin(), light[j].end(),
+                                std::back_inserter(both));
+          common.swap(both);
+        }
+        mine[k] = seen_elsewhere && common.empty() && (in_every_view || !every_view[g]);
+      }
+    }
+    for (size_t i : group) {
+      ImageMeasurement& m = (*measured)[i];
+      const std::vector<char>& mine = drop.at(i);
+      const int n = static_cast<int>(std::count(mine.begin(), mine.end(), 1));
+      if (n == 0) continue;
+      std::vector<vision::Dot> kept;
+      for (size_t k = 0; k < m.dots.size(); ++k)
+        if (!mine[k]) kept.push_back(m.dots[k]);
+      m.dots = std::move(kept);
+      m.dot_rejections.static_blob += n;
+      const bool has_host =
+          sizes[i].size() == 2 ? m.boards[1].has_value() : m.boards[0].has_value();
+      if (has_host) {
+        RegionRejections region;
+        m.dots_on_plane = DotsOnHostPlane(m.dots, m, sizes[i], o, &region).size();
+      }
+    }
+  }
+}
+
 // The third dot pass (PipelineOptions::background_dots): every frame of a static group whose
 // dots on its board's plane fall short of `expected` (step 1: differ from it) is measured on
 // its difference from the
@@ -451,6 +516,25 @@ RecordingMeasurement MeasureRecording(const dataset::Recording& rec, const Image
       static_groups.emplace_back();
       for (size_t i = 0; i < rec.step2.size(); ++i)
         static_groups.back().push_back(rec.step1.size() + i);
+      // What light each image shows: step 1 its unblocked beams; step 2 its (beam, trigger)
+      // pairs, a neutral frame's trigger taken as -1.
+      std::vector<std::vector<int>> light;
+      for (const auto& f : rec.step1) {
+        light.push_back(f.beams);
+        std::sort(light.back().begin(), light.back().end());
+      }
+      for (const auto& f : rec.step2) {
+        std::vector<int> l;
+        const std::vector<int> neutral{-1};
+        for (int b : f.beams)
+          for (int j : f.kind == Step2Kind::kNeutral ? neutral : f.triggers)
+            l.push_back(b * 1000003 + j + 1);
+        std::sort(l.begin(), l.end());
+        light.push_back(std::move(l));
+      }
+      std::vector<char> every_view(static_groups.size(), 0);
+      every_view.back() = 1;  // step 2
+      DropStaticBlobs(static_groups, asks, light, every_view, o, &measured);
       if (o.background_dots) {
         std::vector<std::vector<int>> step1_beams;
         for (const auto& f : rec.step1) step1_beams.push_back(f.beams);
