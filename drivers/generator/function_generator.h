@@ -71,11 +71,18 @@ class GeneratorError : public std::runtime_error {
   enum class Kind { kLimit, kIdentity, kLock, kInstrument, kLink };
   GeneratorError(Kind kind, const std::string& message)
       : std::runtime_error(message), kind_(kind) {}
+  // From a unit's failed Status: the kind grouped from its code, the code kept.
+  explicit GeneratorError(const common::Status& status)
+      : std::runtime_error(status.message), kind_(KindOf(status.code)), code_(status.code) {}
   Kind kind() const { return kind_; }
+  // The Status code it came from (kTimeout, kUnavailable, kProtocol, ...); kOk when it was made
+  // from a kind alone.
+  common::StatusCode code() const { return code_; }
   static Kind KindOf(common::StatusCode code);
 
  private:
   Kind kind_;
+  common::StatusCode code_ = common::StatusCode::kOk;
 };
 
 enum class ReferenceSource { kInternal, kExternal };

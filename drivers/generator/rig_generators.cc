@@ -50,7 +50,7 @@ namespace {
 
 // A unit's failed Status as the session's exception.
 void Must(const common::Status& s) {
-  if (!s) throw GeneratorError(GeneratorError::KindOf(s.code), s.message);
+  if (!s) throw GeneratorError(s);
 }
 
 }  // namespace

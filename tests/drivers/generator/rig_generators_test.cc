@@ -170,7 +170,7 @@ TEST(RigGeneratorsTest, UnlockedSlaveIsRefusedBeforeAnyOutput) {
 
 struct FaultCase {
   sim::FaultKind kind;
-  scpi::ErrorKind expected;
+  common::StatusCode expected;
 };
 
 class RigFaultTest : public ::testing::TestWithParam<FaultCase> {};
@@ -183,8 +183,9 @@ TEST_P(RigFaultTest, FaultAfterOutputsOnEndsInTypedErrorAndOutputsOff) {
   try {
     r.rig->Apply(PlanRigSignals(r.config.signals));
     FAIL();
-  } catch (const scpi::ScpiError& e) {
-    EXPECT_EQ(e.kind(), GetParam().expected) << e.what();
+  } catch (const GeneratorError& e) {  // the unit's Status, as the session's exception
+    EXPECT_EQ(e.kind(), GeneratorError::Kind::kLink) << e.what();
+    EXPECT_EQ(e.code(), GetParam().expected) << e.what();
     EXPECT_NE(std::string(e.what()).find("*OPC?"), std::string::npos) << e.what();
   }
   EXPECT_TRUE(r.AllOff());
@@ -194,9 +195,9 @@ TEST_P(RigFaultTest, FaultAfterOutputsOnEndsInTypedErrorAndOutputsOff) {
 
 INSTANTIATE_TEST_SUITE_P(
     Faults, RigFaultTest,
-    ::testing::Values(FaultCase{sim::FaultKind::kDelayReply, scpi::ErrorKind::kTimeout},
-                      FaultCase{sim::FaultKind::kDropMidReply, scpi::ErrorKind::kConnectionLost},
-                      FaultCase{sim::FaultKind::kGarbageReply, scpi::ErrorKind::kGarbage}));
+    ::testing::Values(FaultCase{sim::FaultKind::kDelayReply, common::StatusCode::kTimeout},
+                      FaultCase{sim::FaultKind::kDropMidReply, common::StatusCode::kUnavailable},
+                      FaultCase{sim::FaultKind::kGarbageReply, common::StatusCode::kProtocol}));
 
 TEST(RigGeneratorsTest, DriverRefusesLimitEvenIfConfigWasNotValidated) {
   Rig r;
