@@ -21,7 +21,6 @@ usage: twin_console_pty_test.py MSMCAL SOURCE_DIR
 """
 import json
 import os
-import pty
 import re
 import shutil
 import signal
