@@ -1,13 +1,14 @@
 """What the scripts that drive msmcal processes and the CLI tests share (scripts/fault_campaign.py,
 tests/app/cli_testlib.py): one SCPI query on a new connection (the mock generators' state as any
 client sees it), a process's output lines collected by a thread to wait on (a line, never a
-sleep), and a bounded wait for a process to end through a pidfd.
+sleep), a bounded wait for a process to end through a pidfd, and a program on a pty.
 
 Standard library only (/usr/bin/python3). Import it from scripts/ directly, from elsewhere with
 scripts/ put on sys.path (as tests/app/cli_testlib.py does).
 """
 
 import os
+import pty
 import re
 import select
 import socket
@@ -106,3 +107,38 @@ class Lines:
     def text(self):
         with self.cv:
             return "\n".join(self.lines)
+
+
+class PtyChild:
+    """A program on a pseudo-terminal (pty.fork), read with select() and deadlines; `out` is all
+    it printed ("\r\n" folded to "\n"), `eof` set once it closed the terminal. Subclasses add
+    the reading a test needs (up to a marker, the next prompt)."""
+
+    def __init__(self, argv):
+        self.pid, self.fd = pty.fork()
+        if self.pid == 0:
+            try:
+                os.execv(argv[0], argv)
+            finally:
+                os._exit(127)
+        self.out = ""
+        self.pos = 0  # start of the text not yet consumed
+        self.eof = False
+
+    def _read(self, deadline):
+        """Reads what is there before `deadline`; False at the deadline or at the end."""
+        left = deadline - time.monotonic()
+        if left <= 0:
+            return False
+        ready, _, _ = select.select([self.fd], [], [], left)
+        if not ready:
+            return False
+        try:
+            data = os.read(self.fd, 65536)
+        except OSError:  # EIO: the child closed the terminal
+            data = b""
+        if not data:
+            self.eof = True
+            return False
+        self.out += data.decode("utf-8", "replace").replace("\r\n", "\n")
+        return True

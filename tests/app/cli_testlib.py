@@ -1,14 +1,14 @@
 """What the CLI tests in tests/app share: fail(), and from scripts/msmcal_harness.py (shared with
 the fault campaign) one SCPI query on a new connection (the mock generators' outputs as a client
 sees them), a process's output lines collected by a thread to wait on (a line, not a sleep) and a
-bounded wait for a process by its pidfd."""
+bounded wait for a process by its pidfd, a program on a pty (PtyChild)."""
 
 import os
 import sys
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..",
                                 "scripts"))
-from msmcal_harness import Lines, scpi, wait_pid  # noqa: E402,F401  (re-exported)
+from msmcal_harness import Lines, PtyChild, scpi, wait_pid  # noqa: E402,F401  (re-exported)
 
 
 def fail(msg):

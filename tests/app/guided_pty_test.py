@@ -21,14 +21,14 @@ interrupt: types Ctrl-C (the terminal's SIGINT) at the second step-1 prompt: the
 No sleeps: every wait is select() on the pty with a deadline.
 """
 import os
-import pty
 import re
-import select
 import shutil
 import sqlite3
 import sys
 import tempfile
 import time
+
+from cli_testlib import PtyChild  # tests/app/cli_testlib.py
 
 PROMPT = "[Enter] ready  [r] repeat instructions  [q] abort > "
 PROMPT_DEADLINE_S = 180  # per prompt (the first includes starting the rig on a busy machine)
@@ -59,36 +59,8 @@ def fail(msg, output=None):
     sys.exit(1)
 
 
-class Child:
-    """msmcal on a pty; reads with select() and deadlines."""
-
-    def __init__(self, argv):
-        self.pid, self.fd = pty.fork()
-        if self.pid == 0:
-            try:
-                os.execv(argv[0], argv)
-            finally:
-                os._exit(127)
-        self.out = ""
-        self.pos = 0  # start of the text not yet consumed by until()
-        self.eof = False
-
-    def _read(self, deadline):
-        left = deadline - time.monotonic()
-        if left <= 0:
-            return False
-        ready, _, _ = select.select([self.fd], [], [], left)
-        if not ready:
-            return False
-        try:
-            data = os.read(self.fd, 65536)
-        except OSError:  # EIO: the child closed the terminal
-            data = b""
-        if not data:
-            self.eof = True
-            return False
-        self.out += data.decode("utf-8", "replace").replace("\r\n", "\n")
-        return True
+class Child(PtyChild):
+    """msmcal on a pty (scripts/msmcal_harness.py PtyChild)."""
 
     def until(self, marker, seconds):
         """Text from the last consumed position up to and including `marker`."""

@@ -21,9 +21,7 @@ usage: twin_console_pty_test.py MSMCAL SOURCE_DIR
 """
 import json
 import os
-import pty
 import re
-import select
 import shutil
 import signal
 import subprocess
@@ -31,7 +29,7 @@ import sys
 import tempfile
 import time
 
-from cli_testlib import Lines, fail  # tests/app/cli_testlib.py
+from cli_testlib import Lines, PtyChild, fail  # tests/app/cli_testlib.py
 
 PROMPT = "[Enter] ready  [r] repeat instructions  [q] abort > "
 PROMPT_DEADLINE_S = 240  # per prompt (frames of the previous set-up on a loaded machine)
@@ -59,36 +57,8 @@ def make_rig(source, tmp):
     return rig
 
 
-class Child:
-    """msmcal on a pty; reads with select() and deadlines."""
-
-    def __init__(self, argv):
-        self.pid, self.fd = pty.fork()
-        if self.pid == 0:
-            try:
-                os.execv(argv[0], argv)
-            finally:
-                os._exit(127)
-        self.out = ""
-        self.pos = 0
-        self.eof = False
-
-    def _read(self, deadline):
-        left = deadline - time.monotonic()
-        if left <= 0:
-            return False
-        ready, _, _ = select.select([self.fd], [], [], left)
-        if not ready:
-            return False
-        try:
-            data = os.read(self.fd, 65536)
-        except OSError:  # EIO: the child closed the terminal
-            data = b""
-        if not data:
-            self.eof = True
-            return False
-        self.out += data.decode("utf-8", "replace").replace("\r\n", "\n")
-        return True
+class Child(PtyChild):
+    """msmcal on a pty (scripts/msmcal_harness.py PtyChild)."""
 
     def next_prompt_or_end(self, seconds):
         deadline = time.monotonic() + seconds
