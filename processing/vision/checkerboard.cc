@@ -31,6 +31,10 @@ std::string CheckerboardOptions::Validate() const {
     s << "upscale_max_side_px = " << upscale_max_side_px << " must be >= 0";
   else if (!(max_refine_shift_squares > 0 && max_refine_shift_squares <= 1))
     s << "max_refine_shift_squares = " << max_refine_shift_squares << " must be in (0, 1]";
+  else if (!(refine_window_squares > 0 && refine_window_squares <= 0.5))
+    s << "refine_window_squares = " << refine_window_squares << " must be in (0, 0.5]";
+  else if (!(refine_window_min_px >= 0 && refine_window_min_px <= 15))
+    s << "refine_window_min_px = " << refine_window_min_px << " must be in [0, 15]";
   else if (!(max_grid_irregularity_squares > 0 && max_grid_irregularity_squares <= 1))
     s << "max_grid_irregularity_squares = " << max_grid_irregularity_squares
       << " must be in (0, 1]";
@@ -246,13 +250,22 @@ std::optional<CheckerboardDetection> DetectCheckerboard(const cv::Mat& image, Bo
       if (attempts) attempts->push_back(attempt);
       continue;
     }
-    // Refinement window from the smallest corner spacing.
+    // Refinement window from the smallest corner spacing, along rows and columns.
     double min_spacing = 1e9;
     for (int r = 0; r < size.rows; ++r)
-      for (int c = 0; c + 1 < size.cols; ++c)
-        min_spacing = std::min<double>(
-            min_spacing, cv::norm(found[r * size.cols + c + 1] - found[r * size.cols + c]));
-    const int win = std::clamp(static_cast<int>(min_spacing * 0.3), 2, 15);
+      for (int c = 0; c < size.cols; ++c) {
+        const cv::Point2f& p = found[r * size.cols + c];
+        if (c + 1 < size.cols)
+          min_spacing = std::min<double>(min_spacing, cv::norm(found[r * size.cols + c + 1] - p));
+        if (r + 1 < size.rows)
+          min_spacing = std::min<double>(min_spacing, cv::norm(found[(r + 1) * size.cols + c] - p));
+      }
+    // The half window: refine_window_squares of that spacing, at least refine_window_min_px
+    // (the blurred edges next to the corner), never beyond half the spacing (the next corner).
+    const double half = std::min(
+        std::max(min_spacing * options.refine_window_squares, options.refine_window_min_px),
+        0.5 * min_spacing);
+    const int win = std::clamp(static_cast<int>(std::lround(half)), 2, 15);
     const std::vector<cv::Point2f> before = found;
     cv::cornerSubPix(gray, found, cv::Size(win, win), cv::Size(-1, -1),
                      cv::TermCriteria(cv::TermCriteria::EPS + cv::TermCriteria::COUNT, 40, 1e-3));

@@ -327,23 +327,47 @@ std::vector<FitPixel> WindowPixels(const cv::Mat& signal_image, const cv::Mat& o
 }
 
 // The level at which a blob's pixels are clipped: full scale, unless the blob's brightest pixels
-// in `original` form a flat top below it (at least 4 pixels within 1 % of the blob's maximum,
-// itself at least 20 % of full scale; an unclipped sampled Gaussian of sigma < 5 px has 1-2).
+// in `original` form a flat top (the blob's maximum at least 20 % of full scale), at full scale
+// or below it; then the top minus a tolerance that comes from the data:
+// - a clean flat top (at least 4 pixels within 1 % of the maximum, no dip inside their convex
+//   hull; an unclipped sampled Gaussian of sigma < 5 px has 1-2 there): 1 %;
+// - a rippled one (compression such as JPEG, a camera's own filtering after the clip): twice the
+//   deepest dip inside that hull, or, where the ripple leaves fewer than 4 pixels within 1 % but
+//   at least 4 within `max_tolerance`, `max_tolerance` (DotOptions::plateau_tolerance_fraction).
 template <typename T>
-double PlateauLevel(const cv::Mat& original, const cv::Rect& box, int full) {
+double PlateauLevel(const cv::Mat& original, const cv::Rect& box, int full, double max_tolerance) {
   double top = 0;
   for (int y = box.y; y < box.y + box.height; ++y) {
     const T* o = original.ptr<T>(y);
     for (int x = box.x; x < box.x + box.width; ++x) top = std::max<double>(top, o[x]);
   }
-  if (top >= full || top < 0.2 * full) return full;
-  const double tol = std::max(0.01 * top, 2.0 * full / 255.0);
+  if (top < 0.2 * full) return full;
+  const double base = std::max(0.01 * top, 2.0 * full / 255.0);
+  const double widest = std::max(base, max_tolerance * top);
+  std::vector<cv::Point> flat;
   int near_top = 0;
   for (int y = box.y; y < box.y + box.height; ++y) {
     const T* o = original.ptr<T>(y);
-    for (int x = box.x; x < box.x + box.width; ++x) near_top += o[x] >= top - tol;
+    for (int x = box.x; x < box.x + box.width; ++x) {
+      if (o[x] >= top - base) flat.emplace_back(x, y);
+      near_top += o[x] >= top - widest;
+    }
   }
-  return near_top >= 4 ? top - tol : full;
+  if (flat.size() < 4) return near_top >= 4 ? std::min<double>(top - widest, full) : full;
+  std::vector<cv::Point> hull;
+  cv::convexHull(flat, hull);
+  const cv::Rect hull_box = cv::boundingRect(hull) & box;
+  double dip = 0;
+  for (int y = hull_box.y; y < hull_box.y + hull_box.height; ++y) {
+    const T* o = original.ptr<T>(y);
+    for (int x = hull_box.x; x < hull_box.x + hull_box.width; ++x)
+      if (o[x] < top - base &&
+          cv::pointPolygonTest(hull, cv::Point2f(static_cast<float>(x), static_cast<float>(y)),
+                               false) > 0)
+        dip = std::max(dip, top - o[x]);
+  }
+  const double tol = std::clamp(2.0 * dip, base, widest);
+  return std::min<double>(top - tol, full);
 }
 
 // Blobs of the one-channel `image` (signal) seeded and bounded by `candidates`; saturation is
@@ -468,7 +492,8 @@ std::vector<Dot> Detect(const cv::Mat& image, const cv::Mat& original, cv::Mat1b
       dot.scatter_px2 = scatter;
       dot.centroid_px = dot.px;
       dot.blob_box = cv::Rect(acc.x0, acc.y0, acc.x1 - acc.x0 + 1, acc.y1 - acc.y0 + 1);
-      dot.plateau_level = PlateauLevel<T>(original, dot.blob_box, full);
+      dot.plateau_level =
+          PlateauLevel<T>(original, dot.blob_box, full, o.plateau_tolerance_fraction);
       if (o.centre == DotCentre::kGaussianFit) {
         Dot fit = dot;
         if (FitGaussian(WindowPixels<T>(image, original, DotFitWindow(dot, image.size(), o),
@@ -507,6 +532,8 @@ std::string DotOptions::Validate() const {
     s << "background_kernel_px = " << background_kernel_px << " must be 0 or odd and positive";
   else if (!(max_saturated_fraction >= 0 && max_saturated_fraction <= 1))
     s << "max_saturated_fraction = " << max_saturated_fraction << " must be in [0, 1]";
+  else if (!(plateau_tolerance_fraction >= 0 && plateau_tolerance_fraction <= 0.3))
+    s << "plateau_tolerance_fraction = " << plateau_tolerance_fraction << " must be in [0, 0.3]";
   else if (fit_margin_px < 0 || fit_margin_px > 50)
     s << "fit_margin_px = " << fit_margin_px << " must be in [0, 50]";
   else if (!(max_fit_shift_px > 0))
@@ -807,32 +834,34 @@ namespace {
 
 template <typename T, int kChannels>
 void ReadSignalT(const cv::Mat& image, const cv::Rect& window, cv::Mat1f* signal,
-                 cv::Mat1b* saturated, const cv::Mat1b* mask_out) {
+                 cv::Mat1b* saturated, const cv::Mat1b* mask_out, cv::Mat1f* level) {
   const int full = sizeof(T) == 1 ? 255 : 65535;
   for (int y = 0; y < window.height; ++y) {
     const T* r = image.ptr<T>(window.y + y);
     float* s = signal->ptr<float>(y);
     uchar* sat = saturated ? saturated->ptr<uchar>(y) : nullptr;
+    float* lv = level ? level->ptr<float>(y) : nullptr;
     const uchar* m = mask_out ? mask_out->ptr<uchar>(y) : nullptr;
     for (int x = 0; x < window.width; ++x) {
       if (m && m[x]) continue;
       s[x] = static_cast<float>(Signal<T, kChannels>(r, window.x + x));
       if (sat) sat[x] = Saturated<T, kChannels>(r, window.x + x, full) ? 1 : 0;
+      if (lv) lv[x] = static_cast<float>(r[kChannels * (window.x + x) + (kChannels == 3 ? 1 : 0)]);
     }
   }
 }
 
 void ReadSignal(const cv::Mat& image, const cv::Rect& window, cv::Mat1f* signal,
-                cv::Mat1b* saturated, const cv::Mat1b* mask_out) {
+                cv::Mat1b* saturated, const cv::Mat1b* mask_out, cv::Mat1f* level = nullptr) {
   switch (image.type()) {
     case CV_8UC1:
-      return ReadSignalT<uint8_t, 1>(image, window, signal, saturated, mask_out);
+      return ReadSignalT<uint8_t, 1>(image, window, signal, saturated, mask_out, level);
     case CV_8UC3:
-      return ReadSignalT<uint8_t, 3>(image, window, signal, saturated, mask_out);
+      return ReadSignalT<uint8_t, 3>(image, window, signal, saturated, mask_out, level);
     case CV_16UC1:
-      return ReadSignalT<uint16_t, 1>(image, window, signal, saturated, mask_out);
+      return ReadSignalT<uint16_t, 1>(image, window, signal, saturated, mask_out, level);
     case CV_16UC3:
-      return ReadSignalT<uint16_t, 3>(image, window, signal, saturated, mask_out);
+      return ReadSignalT<uint16_t, 3>(image, window, signal, saturated, mask_out, level);
     default:
       throw std::invalid_argument("ReadDotSignal: unsupported image type " +
                                   std::to_string(image.type()));
@@ -847,9 +876,10 @@ DotSignalPatch ReadDotSignal(const cv::Mat& image, const cv::Rect& window) {
   DotSignalPatch p;
   p.window = window;
   p.signal = cv::Mat1f(window.size(), 0.0f);
+  p.level = cv::Mat1f(window.size(), 0.0f);
   p.saturated = cv::Mat1b(window.size(), uchar{0});
   p.full_scale = image.depth() == CV_16U ? 65535 : 255;
-  ReadSignal(image, window, &p.signal, &p.saturated, nullptr);
+  ReadSignal(image, window, &p.signal, &p.saturated, nullptr, &p.level);
   return p;
 }
 
@@ -908,8 +938,11 @@ bool RefineDotOnBackground(const DotSignalPatch& own, const BackgroundPatch& bac
       const float c = background.count(y, x);
       if (!(c > 0)) return false;
       const double bg = background.sum(y, x) / c;
-      const bool censored = own.saturated(y, x) != 0 ||
-                            (dot->plateau_level > 0 && own.signal(y, x) >= dot->plateau_level);
+      // Clipped: at full scale, or on the blob's flat top (in the channel the spot is seen in;
+      // a patch without levels falls back to the signal, which is the level in mono).
+      const double level = own.level.empty() ? own.signal(y, x) : own.level(y, x);
+      const bool censored =
+          own.saturated(y, x) != 0 || (dot->plateau_level > 0 && level >= dot->plateau_level);
       const double px_x = own.window.x + x, px_y = own.window.y + y;
       px.push_back({px_x, px_y, own.signal(y, x) - bg, censored});
       rpx.push_back({px_x, px_y, own.signal(y, x) / full, bg / full, censored});

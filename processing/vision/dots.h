@@ -27,8 +27,9 @@ struct Dot {
   // under the spot, full scale - that the most a spot can show there (its headroom).
   double peak_level = 0;
   // Level at and above which the spot's pixels are taken as clipped (bounds, not measurements):
-  // full scale, or lower where the blob has a flat top below it (a camera or a conversion that
-  // clips below full scale, a gain, blur or compression applied after clipping).
+  // full scale, or lower where the blob has a flat top (a camera or a conversion that clips below
+  // full scale, a gain, blur or compression applied after clipping: DotOptions::
+  // plateau_tolerance_fraction).
   double plateau_level = 0;
   bool fitted = false;  // centre and covariance from the Gaussian fit (else: weighted centroid)
   bool on_background = false;  // fitted over a background from other images (RefineDots...)
@@ -69,6 +70,13 @@ struct DotOptions {
   // blob (0.9 lost such dots at random, and with them whole sessions). With
   // DotCentre::kWeightedCentroid a saturated centre is unusable: use about 0.5.
   double max_saturated_fraction = 1.0;
+  // A blob whose brightest pixels form a flat top is taken as clipped there (Dot::plateau_level),
+  // at full scale or below it. A clean flat top is clipped within 1 % of its maximum; one that
+  // compression (JPEG) or a camera's own filtering rippled, down to twice its deepest dip, but
+  // at most this fraction of the maximum: the rippled pixels are bounds, not measurements.
+  // Measured, a mono JPEG of quality 85 (issue 15's independent-like scene): clipped spots
+  // 0.3-0.4 px off truth with 1 %, 0.02-0.07 px with the ripple taken as clipped.
+  double plateau_tolerance_fraction = 0.06;
   // The signal (mono brightness, BGR green) is the white top-hat with this square kernel (odd,
   // pixels; larger than a dot, smaller than a board square), so dots on light squares stand out. 0:
   // raw brightness.
@@ -172,6 +180,7 @@ cv::Rect DotFitWindow(const Dot& dot, const cv::Size& image_size, const DotOptio
 struct DotSignalPatch {
   cv::Rect window;
   cv::Mat1f signal;
+  cv::Mat1f level;  // the channel the spot is seen in (mono: brightness; BGR: green), as read
   cv::Mat1b saturated;
   double full_scale = 255;  // the image type's full scale (255 or 65535)
 };

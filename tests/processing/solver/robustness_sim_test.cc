@@ -164,15 +164,16 @@ void PrintDiagnosis(const SolveRun& r) {
     double s = 0;
     if (m.other_cov.rows() >= off + 4) s = std::sqrt(m.other_cov.block(off, off, 2, 2).trace());
     std::printf("  beam %zu: dir err %.4f deg (chart sigma %.5f)\n", b + 1,
-                geometry::AngleBetween(est.beams[b].v, truth.v) * common::kDegPerRad, s * common::kDegPerRad);
+                geometry::AngleBetween(est.beams[b].v, truth.v) * common::kDegPerRad,
+                s * common::kDegPerRad);
   }
   for (const auto& pl : r.out.planes) {
     const geometry::Plane truth =
         r.sim->MirrorPlaneInWorld(r.sim->triggers()[pl.j].t_s, sim::DriveMode::kScan);
     const Eigen::Vector3d dn = pl.plane_in_world.n - truth.n;
     std::printf("  plane %d: err %.4f deg, dn (%.2e %.2e %.2e)\n", pl.j,
-                geometry::AngleBetween(pl.plane_in_world.n, truth.n) * common::kDegPerRad, dn.x(), dn.y(),
-                dn.z());
+                geometry::AngleBetween(pl.plane_in_world.n, truth.n) * common::kDegPerRad, dn.x(),
+                dn.y(), dn.z());
   }
   // Dot centres against the truth's projections (nearest measured dot within 3 px).
   std::map<std::string, const FrameDetection*> by_file;
@@ -221,9 +222,11 @@ void PrintDiagnosis(const SolveRun& r) {
                 mean.y() / std::max(1, n), errs.empty() ? 0.0 : errs[errs.size() * 9 / 10]);
   }
   // Corners against the truth's projections: RMS, mean, and the mean radial component (scale).
-  auto corner_stats = [&](const char* name, const std::vector<Eigen::Vector2d>& det,
+  auto corner_stats = [&](const std::string& name, const std::vector<Eigen::Vector2d>& det,
                           const std::vector<Eigen::Vector3d>& pts, const geometry::Rigid3d& pose) {
     if (det.size() != pts.size()) return;
+    double worst = 0;
+    size_t worst_i = 0;
     Eigen::Vector2d c = Eigen::Vector2d::Zero();
     for (const auto& d : det) c += d;
     c /= det.size();
@@ -233,14 +236,16 @@ void PrintDiagnosis(const SolveRun& r) {
       const auto t = r.sim->camera().Project(pose * pts[i]);
       if (!t) return;
       const Eigen::Vector2d e = det[i] - *t;
+      if (e.norm() > worst) worst = e.norm(), worst_i = i;
       s2 += e.squaredNorm(), mean += e;
       const Eigen::Vector2d u = (*t - c);
       radial += e.dot(u.normalized()), rr += u.norm();
     }
     std::printf(
-        "  %s corners: RMS %.4f px, mean (%.4f %.4f), mean radial %.4f px (mean r %.0f px)\n", name,
-        std::sqrt(s2 / det.size()), mean.x() / det.size(), mean.y() / det.size(),
-        radial / det.size(), rr / det.size());
+        "  %s corners: RMS %.4f px, mean (%.4f %.4f), mean radial %.4f px (mean r %.0f px), "
+        "worst %.3f px at corner %zu (%.0f %.0f)\n",
+        name.c_str(), std::sqrt(s2 / det.size()), mean.x() / det.size(), mean.y() / det.size(),
+        radial / det.size(), rr / det.size(), worst, worst_i, det[worst_i].x(), det[worst_i].y());
   };
   for (size_t i = 0; i < r.rec.step1.size() && i < 40; i += 3) {
     const auto& f = r.rec.step1[i];
@@ -249,10 +254,10 @@ void PrintDiagnosis(const SolveRun& r) {
     for (const auto& b : d.boards) {
       if (!b.found) continue;
       if (b.name == "world")
-        corner_stats(("step1 world " + f.file).c_str(), b.corners_px,
+        corner_stats("step1 world (" + b.method + ") " + f.file, b.corners_px,
                      BoardPoints(r.rec.world_board), r.sim->c1_from_world());
       else
-        corner_stats(("step1 sliding " + f.file).c_str(), b.corners_px,
+        corner_stats("step1 sliding (" + b.method + ") " + f.file, b.corners_px,
                      BoardPoints(r.rec.sliding_board), r.sim->c1_from_sliding(f.pose));
     }
   }
@@ -282,10 +287,11 @@ void PrintDiagnosis(const SolveRun& r) {
 // ------------------------------------------------------------------ a second image model
 // Applied to the renderer's output: a gamma curve (sensor response), a box PSF on top of the
 // renderer's Gaussian, radial vignetting, and JPEG-like compression (8x8 DCT quantisation).
-cv::Mat OtherImageModel(const cv::Mat& img, double gamma, double vignette, int jpeg_quality) {
+cv::Mat OtherImageModel(const cv::Mat& img, double gamma, double vignette, int jpeg_quality,
+                        bool box_blur = true) {
   cv::Mat f;
   img.convertTo(f, CV_32F, img.depth() == CV_16U ? 1.0 / 65535 : 1.0 / 255);
-  cv::blur(f, f, cv::Size(3, 3));
+  if (box_blur) cv::blur(f, f, cv::Size(3, 3));
   const cv::Point2f c(0.5f * (f.cols - 1), 0.5f * (f.rows - 1));
   const float r2max = c.x * c.x + c.y * c.y;
   for (int y = 0; y < f.rows; ++y) {
@@ -301,6 +307,7 @@ cv::Mat OtherImageModel(const cv::Mat& img, double gamma, double vignette, int j
   }
   cv::Mat out;
   f.convertTo(out, CV_8U, 255.0);
+  if (jpeg_quality > 100) return out;
   std::vector<uchar> jpeg;
   cv::imencode(".jpg", out, jpeg, {cv::IMWRITE_JPEG_QUALITY, jpeg_quality});
   return cv::imdecode(jpeg, cv::IMREAD_UNCHANGED);
@@ -317,7 +324,8 @@ TEST(RobustnessSimTest, IndependentLikeSceneSolves) {
       r.out.dropped.size());
   PrintDiagnosis(r);
   EXPECT_EQ(r.out.num_scan_planes, static_cast<int>(r.sim->triggers().size()));
-  // Measured 0.025 deg / 0.029 deg with one exposure per step 1 frame (the goal is 0.010 deg).
+  // Measured 0.024 deg / 0.028 deg with one exposure per step 1 frame (the goal is 0.010 deg;
+  // session 9: 0.025 / 0.029).
   // MSMCAL_TEST_DIAG=1 shows where it comes from: the dots are within 0.011 px (step 1) and
   // 0.022 px (step 2) of truth, the C1 and C2 world poses within 0.005-0.007 deg; the planes
   // share one common offset that follows the beams, whose points drift linearly over the
@@ -343,15 +351,72 @@ TEST(RobustnessSimTest, SecondImageModelSolves) {
       r.out.num_scan_planes, e.normal_rms_deg, e.beam_max_deg, r.out.rms_normalised_validation,
       r.out.dropped.size());
   PrintDiagnosis(r);
-  // Measured: all 11 planes, 0.42 deg, beams 0.20 deg (before the fit through the response:
-  // 0.47 deg; dots 0.60 px (step 2) and 0.43 px (step 1) off truth, now 0.24 and 0.27 px). The
-  // dots' large errors were perpendicular to square edges: under the gamma a spot adds less
-  // level on the light side (vision/dots.h, RefineDotOnBackground). What is left: the C1 world
-  // board's corners (variance factor ~10) and the sliding dots set the beams (sigma
-  // 0.16-0.36 deg), and every plane shares their offset.
+  // Measured: all 11 planes, 0.33 deg, beams 0.14 deg (session 9: 0.42 / 0.20; before the fit
+  // through the response: 0.47 deg; dots 0.60 px (step 2) and 0.43 px (step 1) off truth, now
+  // 0.14 and 0.23 px). The dots' large errors were perpendicular to square edges: under the
+  // gamma a spot adds less level on the light side (vision/dots.h, RefineDotOnBackground).
+  // Session 10: the C1 world board's corners (variance factor ~10: cornerSubPix's 2 px window
+  // on the slanted board's 10 px side, 0.6 px off truth) are now 0.04 px
+  // (CheckerboardOptions::refine_window_min_px), and the JPEG ripple on clipped tops is read as
+  // clipped (DotOptions::plateau_tolerance_fraction). What is left: the 3 x 3 filter applied
+  // after the clip (MSMCAL_TEST_MODEL="1 0 101 1 0" in DISABLED_ImageModelParts: dots 0.16 /
+  // 0.24 px), which spreads the clipped top into a ring of pixels that are neither clipped nor
+  // the spot's level; the dots' variance factor (~25-130) says so, and the sigmas follow it.
   EXPECT_EQ(r.out.num_scan_planes, static_cast<int>(r.sim->triggers().size()));
-  EXPECT_LT(e.normal_rms_deg, 0.6);
-  EXPECT_LT(e.beam_max_deg, 0.3);
+  EXPECT_LT(e.normal_rms_deg, 0.5);
+  EXPECT_LT(e.beam_max_deg, 0.25);
+}
+
+// A lab's USB camera through V4L2 often delivers MJPEG: the issue 15 scene in mono, JPEG quality
+// 85 and nothing else. Its clipped spots' tops are rippled by the compression; read as
+// measurements they put the dots 0.3-0.4 px off truth and the planes 0.28 deg (before session
+// 10); taken as clipped (vision::DotOptions::plateau_tolerance_fraction), 0.05-0.08 px.
+TEST(RobustnessSimTest, JpegCompressedMonoSceneSolves) {
+  sim::SimOptions o = IndependentLikeScene(5);
+  o.render.colour = false;
+  const SolveRun r = Solve(o, [](const std::string&, cv::Mat img) {
+    return OtherImageModel(img, /*gamma=*/1.0, /*vignette=*/0.0, /*jpeg_quality=*/85,
+                           /*box_blur=*/false);
+  });
+  ASSERT_TRUE(r.error.empty()) << r.error;
+  const Errors e = AgainstTruth(r);
+  std::printf(
+      "JPEG 85 mono: %d scan planes, normal RMS %.4f deg, worst beam %.4f deg, normalised "
+      "validation %.2f, dropped %zu\n",
+      r.out.num_scan_planes, e.normal_rms_deg, e.beam_max_deg, r.out.rms_normalised_validation,
+      r.out.dropped.size());
+  PrintDiagnosis(r);
+  EXPECT_EQ(r.out.num_scan_planes, static_cast<int>(r.sim->triggers().size()));
+  EXPECT_LT(e.normal_rms_deg, 0.08);
+  EXPECT_LT(e.beam_max_deg, 0.08);
+  EXPECT_LT(r.out.rms_normalised_validation, 2.0);
+}
+
+// Which part of the second image model costs the accuracy: MSMCAL_TEST_MODEL="gamma vignette
+// jpeg_quality(>100: none) box_blur(0/1) colour(0/1)", run by hand with
+// --gtest_also_run_disabled_tests.
+TEST(RobustnessSimTest, DISABLED_ImageModelParts) {
+  const char* spec = std::getenv("MSMCAL_TEST_MODEL");
+  double gamma = 0.6, vignette = 0.35;
+  int jpeg = 85, blur = 1, colour = 0;
+  if (spec) std::sscanf(spec, "%lf %lf %d %d %d", &gamma, &vignette, &jpeg, &blur, &colour);
+  sim::SimOptions o = IndependentLikeScene(5);
+  o.render.colour = colour != 0;
+  PipelineOptions p;
+  const SolveRun r = Solve(
+      o,
+      [&](const std::string&, cv::Mat img) {
+        return OtherImageModel(img, gamma, vignette, jpeg, blur != 0);
+      },
+      p);
+  ASSERT_TRUE(r.error.empty()) << r.error;
+  const Errors e = AgainstTruth(r);
+  std::printf(
+      "model gamma %.2f vignette %.2f jpeg %d blur %d colour %d: %d scan planes, normal RMS "
+      "%.4f deg, worst beam %.4f deg, normalised validation %.2f, dropped %zu\n",
+      gamma, vignette, jpeg, blur, colour, r.out.num_scan_planes, e.normal_rms_deg, e.beam_max_deg,
+      r.out.rms_normalised_validation, r.out.dropped.size());
+  PrintDiagnosis(r);
 }
 
 // ------------------------------------------------------------------ spoiled frames
@@ -549,7 +614,8 @@ TEST_P(RandomisedScenes, SolvesHonestlyOrSaysWhy) {
     return img;
   });
   try {
-    r.out = SolveRecording(r.rec, load);
+    PipelineOptions p;
+    r.out = SolveRecording(r.rec, load, p);
   } catch (const SolveError& e) {
     std::printf("  NOT SOLVED: %.300s\n", e.what());
     ASSERT_TRUE(e.partial) << "a failed solve carries its detections";

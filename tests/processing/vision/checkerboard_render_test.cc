@@ -6,6 +6,8 @@
 #include <Eigen/Dense>
 #include <cmath>
 #include <cstdio>
+#include <opencv2/core.hpp>
+#include <opencv2/imgproc.hpp>
 
 #include "mocks/rig/rig_simulator.h"
 #include "processing/vision/checkerboard.h"
@@ -91,6 +93,73 @@ TEST(CheckerboardRenderTest, CornersMatchTheTrueProjectionsAwayFromDots) {
   }
   // The dots' pull on the corners they reach (step 2: up to 1.6 px) is what the flag is for.
   EXPECT_GT(s2[0].worst, 0.5);
+}
+
+// A camera whose response is not linear (a 3 x 3 box filter, then gamma 0.6, applied to the
+// rendered 8-bit frame), looking
+// at the world board at a slant of ~60 degrees (squares of ~10 x 18 px), as the step 1 view of
+// the issue 15 folders: cornerSubPix's window must cover more than the blurred edges next to the
+// corner. With a 2 px half window (0.3 of the smallest spacing, the rule before) the corners are
+// ~0.35 px RMS per axis off (worst 0.8 px); with the 5 px floor ~0.03 px.
+TEST(CheckerboardRenderTest, SlantedBoardUnderAGammaCurveKeepsItsCorners) {
+  sim::SimOptions o;
+  o.seed = 5;
+  o.world_board = {17, 12, 15.0};
+  o.sliding_board = {9, 6, 10.0};
+  o.geometry.board_aim_mm = {120, 82};
+  o.geometry.mirror_distance_mm = 200;
+  o.beams.spanning_angle_deg = 30;
+  o.mirror.slow.amplitude_vpp = 2;
+  o.camera.c2_centre_mm = {200, 90, -550};
+  o.camera.c2_target_mm = {120, 82, 0};
+  o.camera.width = 1600;
+  o.camera.height = 1200;
+  o.camera.fx = o.camera.fy = 1250;
+  o.camera.cx = 799.5;
+  o.camera.cy = 599.5;
+  o.camera.c1_centre_mm = {-640, 82, -560};
+  o.camera.c1_target_mm = {60, 82, -150};
+  o.render.colour = false;
+  const sim::RigSimulator simulator(o);
+  cv::Mat img = simulator.RenderStep1Frame(0);
+  ASSERT_EQ(img.type(), CV_8UC1);
+  cv::Mat lut(1, 256, CV_8U);
+  for (int i = 0; i < 256; ++i)
+    lut.at<uchar>(i) = cv::saturate_cast<uchar>(255.0 * std::pow(i / 255.0, 0.6));
+  cv::blur(img, img, cv::Size(3, 3));  // the camera's own filtering (demosaicing, denoising)
+  cv::LUT(img, lut, img);
+  const sim::Scene scene = simulator.FrameScene(simulator.step1_frames()[0]);
+  size_t world = scene.boards.size();
+  for (size_t b = 0; b < scene.boards.size(); ++b)
+    if (scene.boards[b].spec.cols == o.world_board.cols) world = b;
+  ASSERT_LT(world, scene.boards.size());
+  auto world_rms = [&](const CheckerboardOptions& options) {
+    const auto found = DetectCheckerboard(img, {o.world_board.cols, o.world_board.rows}, options);
+    if (!found) return -1.0;
+    std::vector<cv::Rect> boxes;
+    for (const auto& d : DetectDots(img)) boxes.push_back(d.blob_box);
+    const auto ok = CornersClearOfSpots(*found, boxes);
+    CornerStats st;
+    for (int r = 0; r < o.world_board.rows; ++r)
+      for (int c = 0; c < o.world_board.cols; ++c) {
+        const size_t i = r * o.world_board.cols + c;
+        const auto px = scene.camera.Project(scene.boards[world].cam_from_board *
+                                             Eigen::Vector3d(c * 15.0, r * 15.0, 0));
+        if (px && ok[i]) st.Add(found->corners_px[i] - *px);
+      }
+    st.Print("slanted world board under gamma 0.6");
+    return st.n >= 50 ? st.Rms() : -1.0;  // -1: not found, or too few corners to judge
+  };
+  const double now = world_rms(CheckerboardOptions{});
+  // The rule before: 0.3 of the spacing truncated, no floor: 2 px here (0.2 rounds to it).
+  CheckerboardOptions narrow;
+  narrow.refine_window_squares = 0.2;
+  narrow.refine_window_min_px = 0;
+  const double before = world_rms(narrow);
+  ASSERT_GT(now, 0);
+  ASSERT_GT(before, 0);
+  EXPECT_LT(now, 0.06);
+  EXPECT_GT(before, 0.2);
 }
 
 }  // namespace
