@@ -353,7 +353,7 @@ double PlateauLevel(const cv::Mat& original, const cv::Rect& box, int full, doub
       near_top += o[x] >= top - widest;
     }
   }
-  if (flat.size() < 4) return near_top >= 4 ? std::min<double>(top - widest, full) : full;
+  if (flat.size() < 4) return near_top >= 4 ? top - widest : full;
   std::vector<cv::Point> hull;
   cv::convexHull(flat, hull);
   const cv::Rect hull_box = cv::boundingRect(hull) & box;
@@ -366,8 +366,7 @@ double PlateauLevel(const cv::Mat& original, const cv::Rect& box, int full, doub
                                false) > 0)
         dip = std::max(dip, top - o[x]);
   }
-  const double tol = std::clamp(2.0 * dip, base, widest);
-  return std::min<double>(top - tol, full);
+  return top - std::clamp(2.0 * dip, base, widest);
 }
 
 // Blobs of the one-channel `image` (signal) seeded and bounded by `candidates`; saturation is
@@ -926,7 +925,8 @@ std::vector<BackgroundPatch> BackgroundContribution(const cv::Mat& image,
 
 bool RefineDotOnBackground(const DotSignalPatch& own, const BackgroundPatch& background,
                            const DotOptions& options, Dot* dot) {
-  if (background.sum.size() != own.signal.size() || background.count.size() != own.signal.size())
+  if (background.sum.size() != own.signal.size() || background.count.size() != own.signal.size() ||
+      own.level.size() != own.signal.size())
     return false;
   std::vector<FitPixel> px;
   std::vector<ResponsePixel> rpx;
@@ -938,11 +938,9 @@ bool RefineDotOnBackground(const DotSignalPatch& own, const BackgroundPatch& bac
       const float c = background.count(y, x);
       if (!(c > 0)) return false;
       const double bg = background.sum(y, x) / c;
-      // Clipped: at full scale, or on the blob's flat top (in the channel the spot is seen in;
-      // a patch without levels falls back to the signal, which is the level in mono).
-      const double level = own.level.empty() ? own.signal(y, x) : own.level(y, x);
-      const bool censored =
-          own.saturated(y, x) != 0 || (dot->plateau_level > 0 && level >= dot->plateau_level);
+      // Clipped: at full scale, or on the blob's flat top (in the channel the spot is seen in).
+      const bool censored = own.saturated(y, x) != 0 ||
+                            (dot->plateau_level > 0 && own.level(y, x) >= dot->plateau_level);
       const double px_x = own.window.x + x, px_y = own.window.y + y;
       px.push_back({px_x, px_y, own.signal(y, x) - bg, censored});
       rpx.push_back({px_x, px_y, own.signal(y, x) / full, bg / full, censored});

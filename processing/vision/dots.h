@@ -199,7 +199,8 @@ std::vector<BackgroundPatch> BackgroundContribution(const cv::Mat& image,
                                                     const DotOptions& options = {});
 // Refits `dot` to own.signal - background (its mean); returns false and leaves the dot as it
 // was where a window pixel has no dot-free view, the fit fails or moves the centre by more
-// than options.max_fit_shift_px from the blob's centroid. Sets dot->on_background.
+// than options.max_fit_shift_px from the blob's centroid, or where `own` lacks its levels (read it
+// with ReadDotSignal). Sets dot->on_background.
 // Where the camera's response is not linear (a gamma curve, a LUT), a spot adds less level over
 // a light background than over a dark one, so a spot across a square edge is lopsided after the
 // background is subtracted and its fitted centre moves towards the dark side (0.3-1.3 px under

@@ -22,6 +22,7 @@
 #include "processing/solver/pipeline.h"
 #include "processing/solver/stages/common.h"
 #include "tests/testing/cached_loader.h"
+#include "tests/testing/independent_like_scene.h"
 
 namespace msmcal::solver {
 namespace {
@@ -36,31 +37,7 @@ void ScaleCamera(sim::SimOptions* o, double f) {
   o->camera.cy = 0.5 * (o->camera.height - 1);
 }
 
-// The scene shaped like the independent simulator's folders of issue 15 (one case of many).
-sim::SimOptions IndependentLikeScene(uint64_t seed) {
-  sim::SimOptions s;
-  s.seed = seed;
-  s.world_board = {17, 12, 15.0};
-  s.sliding_board = {9, 6, 10.0};
-  s.geometry.board_aim_mm = {120, 82};
-  s.geometry.mirror_distance_mm = 200;
-  s.beams.spanning_angle_deg = 30;
-  s.mirror.slow.amplitude_vpp = 2;
-  s.camera.width = 1600;
-  s.camera.height = 1200;
-  s.camera.fx = s.camera.fy = 1250;
-  s.camera.cx = 799.5;
-  s.camera.cy = 599.5;
-  s.camera.c1_centre_mm = {-640, 82, -560};
-  s.camera.c1_target_mm = {60, 82, -150};
-  s.camera.c2_centre_mm = {200, 90, -550};
-  s.camera.c2_target_mm = {120, 82, 0};
-  s.render.dot_sigma_mm = 0.6;
-  s.render.dot_peak = 2.0;
-  s.render.colour = true;
-  s.step1.exposures = 1;
-  return s;
-}
+using msmcal::testing::IndependentLikeScene;
 
 struct SolveRun {
   std::unique_ptr<sim::RigSimulator> sim;
@@ -284,6 +261,19 @@ void PrintDiagnosis(const SolveRun& r) {
                 m.redundancy[f]);
 }
 
+// The run's figures against truth, printed under `label` (with the diagnosis when
+// MSMCAL_TEST_DIAG=1).
+Errors Report(const std::string& label, const SolveRun& r) {
+  const Errors e = AgainstTruth(r);
+  std::printf(
+      "%s: %d scan planes, normal RMS %.4f deg, worst beam %.4f deg, normalised validation "
+      "%.2f, dropped %zu\n",
+      label.c_str(), r.out.num_scan_planes, e.normal_rms_deg, e.beam_max_deg,
+      r.out.rms_normalised_validation, r.out.dropped.size());
+  PrintDiagnosis(r);
+  return e;
+}
+
 // ------------------------------------------------------------------ a second image model
 // Applied to the renderer's output: a gamma curve (sensor response), a box PSF on top of the
 // renderer's Gaussian, radial vignetting, and JPEG-like compression (8x8 DCT quantisation).
@@ -316,13 +306,7 @@ cv::Mat OtherImageModel(const cv::Mat& img, double gamma, double vignette, int j
 TEST(RobustnessSimTest, IndependentLikeSceneSolves) {
   const SolveRun r = Solve(IndependentLikeScene(3));
   ASSERT_TRUE(r.error.empty()) << r.error;
-  const Errors e = AgainstTruth(r);
-  std::printf(
-      "independent-like: %d scan planes, normal RMS %.4f deg, worst beam %.4f deg, "
-      "normalised validation %.2f, dropped %zu\n",
-      r.out.num_scan_planes, e.normal_rms_deg, e.beam_max_deg, r.out.rms_normalised_validation,
-      r.out.dropped.size());
-  PrintDiagnosis(r);
+  const Errors e = Report("independent-like", r);
   EXPECT_EQ(r.out.num_scan_planes, static_cast<int>(r.sim->triggers().size()));
   // Measured 0.024 deg / 0.028 deg with one exposure per step 1 frame (the goal is 0.010 deg;
   // session 9: 0.025 / 0.029).
@@ -344,13 +328,7 @@ TEST(RobustnessSimTest, SecondImageModelSolves) {
     return OtherImageModel(img, /*gamma=*/0.6, /*vignette=*/0.35, /*jpeg_quality=*/85);
   });
   ASSERT_TRUE(r.error.empty()) << r.error;
-  const Errors e = AgainstTruth(r);
-  std::printf(
-      "second image model: %d scan planes, normal RMS %.4f deg, worst beam %.4f deg, "
-      "normalised validation %.2f, dropped %zu\n",
-      r.out.num_scan_planes, e.normal_rms_deg, e.beam_max_deg, r.out.rms_normalised_validation,
-      r.out.dropped.size());
-  PrintDiagnosis(r);
+  const Errors e = Report("second image model", r);
   // Measured: all 11 planes, 0.33 deg, beams 0.14 deg (session 9: 0.42 / 0.20; before the fit
   // through the response: 0.47 deg; dots 0.60 px (step 2) and 0.43 px (step 1) off truth, now
   // 0.14 and 0.23 px). The dots' large errors were perpendicular to square edges: under the
@@ -379,13 +357,7 @@ TEST(RobustnessSimTest, JpegCompressedMonoSceneSolves) {
                            /*box_blur=*/false);
   });
   ASSERT_TRUE(r.error.empty()) << r.error;
-  const Errors e = AgainstTruth(r);
-  std::printf(
-      "JPEG 85 mono: %d scan planes, normal RMS %.4f deg, worst beam %.4f deg, normalised "
-      "validation %.2f, dropped %zu\n",
-      r.out.num_scan_planes, e.normal_rms_deg, e.beam_max_deg, r.out.rms_normalised_validation,
-      r.out.dropped.size());
-  PrintDiagnosis(r);
+  const Errors e = Report("JPEG 85 mono", r);
   EXPECT_EQ(r.out.num_scan_planes, static_cast<int>(r.sim->triggers().size()));
   EXPECT_LT(e.normal_rms_deg, 0.08);
   EXPECT_LT(e.beam_max_deg, 0.08);
@@ -402,21 +374,14 @@ TEST(RobustnessSimTest, DISABLED_ImageModelParts) {
   if (spec) std::sscanf(spec, "%lf %lf %d %d %d", &gamma, &vignette, &jpeg, &blur, &colour);
   sim::SimOptions o = IndependentLikeScene(5);
   o.render.colour = colour != 0;
-  PipelineOptions p;
-  const SolveRun r = Solve(
-      o,
-      [&](const std::string&, cv::Mat img) {
-        return OtherImageModel(img, gamma, vignette, jpeg, blur != 0);
-      },
-      p);
+  const SolveRun r = Solve(o, [&](const std::string&, cv::Mat img) {
+    return OtherImageModel(img, gamma, vignette, jpeg, blur != 0);
+  });
   ASSERT_TRUE(r.error.empty()) << r.error;
-  const Errors e = AgainstTruth(r);
-  std::printf(
-      "model gamma %.2f vignette %.2f jpeg %d blur %d colour %d: %d scan planes, normal RMS "
-      "%.4f deg, worst beam %.4f deg, normalised validation %.2f, dropped %zu\n",
-      gamma, vignette, jpeg, blur, colour, r.out.num_scan_planes, e.normal_rms_deg, e.beam_max_deg,
-      r.out.rms_normalised_validation, r.out.dropped.size());
-  PrintDiagnosis(r);
+  char label[120];
+  std::snprintf(label, sizeof(label), "model gamma %.2f vignette %.2f jpeg %d blur %d colour %d",
+                gamma, vignette, jpeg, blur, colour);
+  Report(label, r);
 }
 
 // ------------------------------------------------------------------ spoiled frames

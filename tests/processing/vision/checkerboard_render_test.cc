@@ -12,6 +12,7 @@
 #include "mocks/rig/rig_simulator.h"
 #include "processing/vision/checkerboard.h"
 #include "processing/vision/dots.h"
+#include "tests/testing/independent_like_scene.h"
 
 namespace msmcal::vision {
 namespace {
@@ -102,23 +103,7 @@ TEST(CheckerboardRenderTest, CornersMatchTheTrueProjectionsAwayFromDots) {
 // corner. With a 2 px half window (0.3 of the smallest spacing, the rule before) the corners are
 // ~0.35 px RMS per axis off (worst 0.8 px); with the 5 px floor ~0.03 px.
 TEST(CheckerboardRenderTest, SlantedBoardUnderAGammaCurveKeepsItsCorners) {
-  sim::SimOptions o;
-  o.seed = 5;
-  o.world_board = {17, 12, 15.0};
-  o.sliding_board = {9, 6, 10.0};
-  o.geometry.board_aim_mm = {120, 82};
-  o.geometry.mirror_distance_mm = 200;
-  o.beams.spanning_angle_deg = 30;
-  o.mirror.slow.amplitude_vpp = 2;
-  o.camera.c2_centre_mm = {200, 90, -550};
-  o.camera.c2_target_mm = {120, 82, 0};
-  o.camera.width = 1600;
-  o.camera.height = 1200;
-  o.camera.fx = o.camera.fy = 1250;
-  o.camera.cx = 799.5;
-  o.camera.cy = 599.5;
-  o.camera.c1_centre_mm = {-640, 82, -560};
-  o.camera.c1_target_mm = {60, 82, -150};
+  sim::SimOptions o = msmcal::testing::IndependentLikeScene(5);
   o.render.colour = false;
   const sim::RigSimulator simulator(o);
   cv::Mat img = simulator.RenderStep1Frame(0);
@@ -143,8 +128,9 @@ TEST(CheckerboardRenderTest, SlantedBoardUnderAGammaCurveKeepsItsCorners) {
     for (int r = 0; r < o.world_board.rows; ++r)
       for (int c = 0; c < o.world_board.cols; ++c) {
         const size_t i = r * o.world_board.cols + c;
-        const auto px = scene.camera.Project(scene.boards[world].cam_from_board *
-                                             Eigen::Vector3d(c * 15.0, r * 15.0, 0));
+        const auto px = scene.camera.Project(
+            scene.boards[world].cam_from_board *
+            Eigen::Vector3d(c * o.world_board.square_mm, r * o.world_board.square_mm, 0));
         if (px && ok[i]) st.Add(found->corners_px[i] - *px);
       }
     st.Print("slanted world board under gamma 0.6");
