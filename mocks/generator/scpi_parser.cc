@@ -252,8 +252,15 @@ HeaderPattern::HeaderPattern(std::string_view pattern) {
 }
 
 bool HeaderPattern::MatchFrom(size_t pi, size_t ni, const std::vector<HeaderNode>& nodes,
-                              std::vector<int>& suffixes, uint64_t* work) const {
+                              std::vector<int>& suffixes, std::vector<char>& failed,
+                              uint64_t* work) const {
   if (pi == nodes_.size()) return ni == nodes.size();
+  // Whether (pi, ni) can reach the end does not depend on the path that led here (the suffixes
+  // pushed so far are only output): a state that failed once fails again. Remembering it keeps
+  // the search linear in states, (pattern nodes + 1) x (header nodes + 1); without it, runs of
+  // optional nodes with the same mnemonic made it exponential (found by the fuzzer).
+  char& dead = failed[pi * (nodes.size() + 1) + ni];
+  if (dead) return false;
   if (work) ++*work;
   const Node& p = nodes_[pi];
   if (ni < nodes.size()) {
@@ -261,15 +268,16 @@ bool HeaderPattern::MatchFrom(size_t pi, size_t ni, const std::vector<HeaderNode
     if (h.valid && (h.alpha == p.short_form || h.alpha == p.long_form) &&
         (h.suffix < 0 || p.suffix)) {
       if (p.suffix) suffixes.push_back(h.suffix < 0 ? 1 : h.suffix);
-      if (MatchFrom(pi + 1, ni + 1, nodes, suffixes, work)) return true;
+      if (MatchFrom(pi + 1, ni + 1, nodes, suffixes, failed, work)) return true;
       if (p.suffix) suffixes.pop_back();
     }
   }
   if (p.optional) {
     if (p.suffix) suffixes.push_back(1);
-    if (MatchFrom(pi + 1, ni, nodes, suffixes, work)) return true;
+    if (MatchFrom(pi + 1, ni, nodes, suffixes, failed, work)) return true;
     if (p.suffix) suffixes.pop_back();
   }
+  dead = 1;
   return false;
 }
 
@@ -277,7 +285,8 @@ std::optional<std::vector<int>> HeaderPattern::Match(const std::vector<HeaderNod
                                                      uint64_t* work) const {
   if (nodes.size() > nodes_.size()) return std::nullopt;
   std::vector<int> suffixes;
-  if (MatchFrom(0, 0, nodes, suffixes, work)) return suffixes;
+  std::vector<char> failed((nodes_.size() + 1) * (nodes.size() + 1), 0);
+  if (MatchFrom(0, 0, nodes, suffixes, failed, work)) return suffixes;
   return std::nullopt;
 }
 

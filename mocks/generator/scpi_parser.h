@@ -53,7 +53,8 @@ std::vector<HeaderNode> SplitHeaderNodes(const std::vector<std::string>& nodes);
 
 // Header pattern, e.g. "[SOURce#:]FREQuency" or "OUTPut#[:STATe]": nodes separated by ':',
 // optional nodes in brackets, upper-case letters are the short form, '#' admits a numeric suffix.
-// Compiled once; Match() allocates only its result.
+// Compiled once; Match() allocates its result and a table of the states it ruled out (linear in
+// pattern nodes x header nodes, whatever the pattern).
 class HeaderPattern {
  public:
   explicit HeaderPattern(std::string_view pattern);
@@ -72,7 +73,7 @@ class HeaderPattern {
     bool suffix = false;
   };
   bool MatchFrom(size_t pi, size_t ni, const std::vector<HeaderNode>& nodes,
-                 std::vector<int>& suffixes, uint64_t* work) const;
+                 std::vector<int>& suffixes, std::vector<char>& failed, uint64_t* work) const;
   std::vector<Node> nodes_;
 };
 

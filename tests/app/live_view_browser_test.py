@@ -39,11 +39,13 @@ from selenium.webdriver.support.ui import WebDriverWait
 PROMPT_DEADLINE_S = 240  # per instruction (the first includes starting the rig on a busy machine)
 END_DEADLINE_S = 400     # after the last instruction (solve + Hall calibration for `complete`)
 
-# The tiny simulator of tests/app/guided_pty_test.py.
+# The tiny simulator of tests/app/guided_pty_test.py, one exposure per step 1 frame (the page is
+# under test, not the averaging; guided_pty_test.py keeps the repeated exposures).
 TINY = """\
 seed: 3
 step1:
   poses: 4
+  exposures: 1
 step2:
   neutral_frames: 1
   fast_only_frames: 2

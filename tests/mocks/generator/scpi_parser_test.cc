@@ -119,5 +119,26 @@ TEST(ScpiParserTest, FramerShiftKeepsItsPlace) {
   EXPECT_EQ(framer.Next(buffer), buffer.size() - 1);
 }
 
+// Found by the mock_scpi_parser fuzz target in a 10 M-execution run (session 11): a pattern with
+// a run of optional nodes of one mnemonic, matched against a header that fits none of the
+// alternatives, was searched by plain backtracking in 2^k steps. The search now remembers
+// the states that failed: its work stays within (pattern nodes + 1) x (header nodes + 1).
+TEST(ScpiParserTest, MatchingARunOfOptionalNodesIsLinearInStates) {
+  std::string text;
+  for (int i = 0; i < 24; ++i) text += "[:VOLTage]";
+  text += ":VOLTage:LEVel";
+  const HeaderPattern pattern(text);
+  ASSERT_EQ(pattern.max_nodes(), 26u);
+  const std::vector<HeaderNode> header =
+      SplitHeaderNodes({"VOLT", "VOLT", "VOLT", "VOLT", "VOLT", "VOLT", "FREQ"});
+  uint64_t work = 0;
+  EXPECT_FALSE(pattern.Match(header, &work));
+  EXPECT_LE(work, (pattern.max_nodes() + 1) * (header.size() + 1));  // 2^24 steps before
+  // and a header that fits is still matched, with the right number of nodes used.
+  work = 0;
+  EXPECT_TRUE(pattern.Match(SplitHeaderNodes({"VOLT", "VOLT", "VOLT", "LEV"}), &work));
+  EXPECT_LE(work, (pattern.max_nodes() + 1) * 5u);
+}
+
 }  // namespace
 }  // namespace msmcal::sim

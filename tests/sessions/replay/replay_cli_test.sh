@@ -15,6 +15,7 @@ cat > "$work/tiny.yaml" <<'YAML'
 seed: 3
 step1:
   poses: 4
+  exposures: 1
 step2:
   neutral_frames: 1
   fast_only_frames: 2
