@@ -94,12 +94,14 @@ void RunExplain(const SolveArgs& args, const solver::PipelineOptions& options) {
   const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   std::printf("measured in %.2f s\n", secs);
   for (size_t b = 0; b < asks.size(); ++b) {
-    std::printf(
-        "%s board (%dx%d inner corners): %s\n", names[b].c_str(), asks[b].cols, asks[b].rows,
-        m.boards[b] ? (std::string("found by ") + vision::ToString(m.boards[b]->method) +
-                       ", squares " + std::to_string(m.boards[b]->square_px).substr(0, 5) + " px")
-                          .c_str()
-                    : "NOT FOUND");
+    std::printf("%s board (%dx%d inner corners): %s\n", names[b].c_str(), asks[b].cols,
+                asks[b].rows,
+                m.boards[b] ? (std::string("found by ") + vision::ToString(m.boards[b]->method) +
+                               ", squares " + std::to_string(m.boards[b]->square_px).substr(0, 5) +
+                               " px, " + std::to_string(m.boards[b]->corners_fitted) + " of " +
+                               std::to_string(m.boards[b]->corners_px.size()) + " corners fitted")
+                                  .c_str()
+                            : "NOT FOUND");
     for (const auto& a : m.board_attempts[b])
       std::printf("  %-12s scale %.3f: %s%s%s\n", vision::ToString(a.method), a.scale,
                   !a.found     ? "no grid"

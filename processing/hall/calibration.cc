@@ -152,8 +152,26 @@ HallCalibrationResult CalibrateHall(const HallCalibrationInput& in,
         "CalibrateHall: needs both hall/actual.csv and hall/background.csv");
   if (!(in.pattern_period_s > 0))
     throw std::invalid_argument("CalibrateHall: drive.pattern_period_s must be > 0");
-  if (in.poses.size() < 12)
-    throw std::invalid_argument("CalibrateHall: needs at least 12 mirror poses, got " +
+  // Enough poses that a training split (train_fraction of them) holds more poses than the
+  // simplest model asked has features, and its test split at least two.
+  size_t min_poses = 0;
+  for (HallModelKind kind : o.models) {
+    HallModel model;
+    model.kind = kind;
+    const size_t features = static_cast<size_t>(model.FeatureCount());
+    size_t n = features + 1;
+    while (static_cast<size_t>(std::lround(o.train_fraction * static_cast<double>(n))) <=
+               features ||
+           n - static_cast<size_t>(std::lround(o.train_fraction * static_cast<double>(n))) < 2)
+      ++n;
+    min_poses = min_poses == 0 ? n : std::min(min_poses, n);
+  }
+  if (in.poses.size() < min_poses)
+    throw std::invalid_argument("CalibrateHall: needs at least " + std::to_string(min_poses) +
+                                " mirror poses (a training split of " +
+                                std::to_string(static_cast<int>(o.train_fraction * 100)) +
+                                " % with more poses than the simplest model's features, and two "
+                                "test poses), got " +
                                 std::to_string(in.poses.size()));
   HallCalibrationResult r;
   try {

@@ -8,6 +8,8 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "processing/vision/corner_fit.h"
+
 namespace msmcal::vision {
 namespace {
 
@@ -39,6 +41,27 @@ std::string CheckerboardOptions::Validate() const {
     s << "max_grid_irregularity_squares = " << max_grid_irregularity_squares
       << " must be in (0, 1]";
   return s.str();
+}
+
+cv::Mat ToGray32F(const cv::Mat& image, const cv::Mat& mask) {
+  if (image.channels() != 1 && image.channels() != 3)
+    throw std::invalid_argument("ToGray32F: expected 1 or 3 channels, got " +
+                                std::to_string(image.channels()));
+  if (image.depth() != CV_8U && image.depth() != CV_16U)
+    throw std::invalid_argument("ToGray32F: expected 8- or 16-bit image");
+  cv::Mat f;
+  image.convertTo(f, CV_32F, image.depth() == CV_16U ? 1.0 / 257.0 : 1.0);
+  cv::Mat gray;
+  if (f.channels() == 3)
+    cv::cvtColor(f, gray, cv::COLOR_BGR2GRAY);
+  else
+    gray = f;
+  if (!mask.empty()) {
+    cv::Mat masked(gray.size(), CV_32F, cv::Scalar(128));
+    gray.copyTo(masked, mask);
+    gray = masked;
+  }
+  return gray;
 }
 
 cv::Mat ToGray8(const cv::Mat& image) {
@@ -285,9 +308,30 @@ std::optional<CheckerboardDetection> DetectCheckerboard(const cv::Mat& image, Bo
     std::vector<Eigen::Vector2d> grid;
     grid.reserve(found.size());
     for (const auto& p : found) grid.emplace_back(p.x, p.y);
+    int corners_fitted = 0;
+    if (options.fit_corners) {
+      const cv::Mat levels = ToGray32F(image, mask);
+      const auto at = [&](int r, int c) { return grid[r * size.cols + c]; };
+      std::vector<Eigen::Vector2d> fitted = grid;
+      int nfit = 0;
+      for (int r = 0; r < size.rows; ++r)
+        for (int c = 0; c < size.cols; ++c) {
+          const Eigen::Vector2d row_dir =
+              c + 1 < size.cols ? at(r, c + 1) - at(r, c) : at(r, c) - at(r, c - 1);
+          const Eigen::Vector2d col_dir =
+              r + 1 < size.rows ? at(r + 1, c) - at(r, c) : at(r, c) - at(r - 1, c);
+          if (const auto f = FitCorner(levels, at(r, c), row_dir, col_dir, half)) {
+            fitted[r * size.cols + c] = f->px;
+            ++nfit;
+          }
+        }
+      corners_fitted = nfit;
+      grid = fitted;
+    }
     CheckerboardDetection det;
     det.corners_px = CanonicalCornerOrder(grid, size, gray);
     det.refine_half_window_px = win;
+    det.corners_fitted = corners_fitted;
     det.method = method;
     det.square_px = spacing;
     return det;

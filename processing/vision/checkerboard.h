@@ -56,6 +56,10 @@ struct CheckerboardOptions {
   double refine_window_squares = 0.3;
   double refine_window_min_px = 5;
   double max_grid_irregularity_squares = 0.25;
+  // After cornerSubPix, each corner is refined by fitting a model of a blurred corner to the
+  // levels within the same window (vision/corner_fit.h); a corner whose fit fails keeps
+  // cornerSubPix's point.
+  bool fit_corners = true;
   std::string Validate() const;
 };
 
@@ -75,6 +79,9 @@ struct CheckerboardDetection {
   int refine_half_window_px = 0;
   BoardMethod method = BoardMethod::kSbCoarse;  // the detector that found the board
   double square_px = 0;  // median distance between neighbouring corners, pixels
+  // Corners refined by the corner model (CheckerboardOptions::fit_corners); the others keep
+  // cornerSubPix's point.
+  int corners_fitted = 0;
 };
 
 // Finds one board of exactly `size` in `image` (8/16-bit, 1 or 3 channels). `mask` (optional,
@@ -115,6 +122,9 @@ std::vector<Eigen::Vector2d> SquaresOutline(const CheckerboardDetection& board, 
                                             double margin_squares = 0.0);
 bool InsideOutline(const std::vector<Eigen::Vector2d>& outline, const Eigen::Vector2d& px);
 
+// Single-channel float levels of an image in 8-bit units (BGR -> gray without rounding, 16-bit
+// scaled by 1/257); where `mask` (optional) is zero, 128.
+cv::Mat ToGray32F(const cv::Mat& image, const cv::Mat& mask = cv::Mat());
 // 8-bit single-channel version of an image (BGR -> gray, 16-bit -> scaled).
 cv::Mat ToGray8(const cv::Mat& image);
 // 8-bit BGR copy of an image (gray -> BGR, 16-bit -> scaled by 1/257), for drawing on. Throws
