@@ -41,6 +41,9 @@ double CheckerPattern(double h, double k, double rho) {
   static constexpr std::array<double, 5> kW = {0.2955242247147529, 0.2692667193099963,
                                                0.2190863625159820, 0.1494513491505806,
                                                0.0666713443086881};
+  const double separable = (2 * Phi(h) - 1) * (2 * Phi(k) - 1);
+  // The integrand is at most exp(-(h^2 + k^2)(1 - |rho|) / 2): far from the corner T vanishes.
+  if ((h * h + k * k) * (1 - std::abs(rho)) > 60) return separable;
   const double top = std::asin(rho), half = 0.5 * top;
   double t = 0;
   for (int i = 0; i < 5; ++i)
@@ -50,7 +53,7 @@ double CheckerPattern(double h, double k, double rho) {
       t += kW[i] * std::exp(-(h * h + k * k - 2 * h * k * std::sin(a)) / (2 * c * c));
     }
   t *= half / (2 * M_PI);
-  return (2 * Phi(h) - 1) * (2 * Phi(k) - 1) + 4 * t;
+  return separable + 4 * t;
 }
 
 // Model value and, when `jac`, its derivatives at sample s (see corner_fit.h).
@@ -102,6 +105,9 @@ std::optional<CornerFit> FitCorner(const cv::Mat& image, const Eigen::Vector2d& 
                                    double half_window, const CornerFitOptions& options) {
   if (image.type() != CV_32FC1 || !(half_window >= 2) || row_dir.norm() == 0 || col_dir.norm() == 0)
     return std::nullopt;
+  // Large squares: the pixels within max_radius_px carry the corner's information; more only
+  // cost time.
+  half_window = std::min(half_window, options.max_radius_px);
   const int r = static_cast<int>(std::floor(half_window));
   const int cx = static_cast<int>(std::lround(start.x())),
             cy = static_cast<int>(std::lround(start.y()));
@@ -157,17 +163,27 @@ std::optional<CornerFit> FitCorner(const cv::Mat& image, const Eigen::Vector2d& 
       jtr += j * res;
     }
     jtj = jtj.selfadjointView<Eigen::Lower>();
-    bool stepped = false;
+    bool stepped = false, converged = false;
     Vec step = Vec::Zero();
+    // At the blur's floor with the gradient pushing below it, the blur stays fixed this step.
+    const bool hold_blur = p(4) <= kPixelSigma && jtr(4) < 0;
     for (int tries = 0; tries < 10 && !stepped; ++tries) {
       Mat a = jtj;
       a.diagonal() *= 1.0 + lambda;
-      step = a.ldlt().solve(jtr);
+      Vec g = jtr;
+      if (hold_blur) {
+        a.row(4).setZero();
+        a.col(4).setZero();
+        a(4, 4) = 1;
+        g(4) = 0;
+      }
+      step = a.ldlt().solve(g);
       if (!step.allFinite()) return std::nullopt;
       Vec q = p + step;
       q(4) = std::max(q(4), kPixelSigma);
       const double c = std::abs(std::cos(q(2) - q(3))) > 0.9 ? HUGE_VAL : Cost(q, samples, start);
       if (c < cost) {
+        converged = cost - c < 1e-10 * cost || step.head<2>().norm() < 1e-4;
         p = q;
         cost = c;
         lambda = std::max(lambda * 0.3, 1e-9);
@@ -176,7 +192,7 @@ std::optional<CornerFit> FitCorner(const cv::Mat& image, const Eigen::Vector2d& 
         lambda *= 10;
       }
     }
-    if (!stepped || step.head<2>().norm() < 1e-6) break;
+    if (!stepped || converged) break;
   }
   if (!p.allFinite()) return std::nullopt;
   const Eigen::Vector2d c(p(0), p(1));

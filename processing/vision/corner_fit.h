@@ -31,6 +31,8 @@ struct CornerFitOptions {
   // contrast |b| is below min_contrast (levels of `image`).
   double max_shift_px = 1.0;
   double min_contrast = 2.0;
+  // The window's radius is at most this (px).
+  double max_radius_px = 8.0;
 };
 
 struct CornerFit {
