@@ -38,10 +38,11 @@ if "$msmcal" solve "$dir/s" --config "$dir/typo.yaml" > "$dir/out" 2>&1; then
 fi
 grep -q "typo.yaml:2: dots.min_pixel: unknown setting" "$dir/out"
 # A good one: solved, with the values used written back, and they read back.
-printf 'dots:\n  min_pixels: 6\nmax_surface_elongation: 2.5\n' > "$dir/good.yaml"
+printf 'dots:\n  min_pixels: 6\nmax_surface_elongation: 2.5\nboards:\n  fit_corners: false\n' > "$dir/good.yaml"
 "$msmcal" solve "$dir/s" --config "$dir/good.yaml" > "$dir/solve.out" 2>&1 || { cat "$dir/solve.out"; exit 1; }
 grep -q "min_pixels: 6" "$dir/s/results/solve_options.yaml"
 grep -q "max_surface_elongation: 2.5" "$dir/s/results/solve_options.yaml"
+grep -q "fit_corners: false" "$dir/s/results/solve_options.yaml"
 cp "$dir/s/results/solve_options.yaml" "$dir/used.yaml"
 "$msmcal" solve "$dir/s" --config "$dir/used.yaml" > /dev/null 2>&1
 cmp "$dir/used.yaml" "$dir/s/results/solve_options.yaml"
