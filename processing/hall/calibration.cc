@@ -74,6 +74,12 @@ Foreground MakeForeground(const Mapped& actual, const Mapped& background, double
 
 // Error normalisation for choosing the best model: degrees and millimetres are compared through
 // the spread of each output.
+// Poses in a training split of n (n >= 2): the fraction, rounded, at least one, at most n - 1.
+size_t TrainingSplitSize(size_t n, double train_fraction) {
+  return std::clamp<size_t>(
+      static_cast<size_t>(std::lround(train_fraction * static_cast<double>(n))), 1, n - 1);
+}
+
 Eigen::Vector3d OutputScale(const std::vector<PoseSample>& poses) {
   Eigen::Vector3d mean = Eigen::Vector3d::Zero(), ss = Eigen::Vector3d::Zero();
   for (const auto& p : poses) mean += p.pose;
@@ -160,9 +166,8 @@ HallCalibrationResult CalibrateHall(const HallCalibrationInput& in,
     model.kind = kind;
     const size_t features = static_cast<size_t>(model.FeatureCount());
     size_t n = features + 1;
-    while (static_cast<size_t>(std::lround(o.train_fraction * static_cast<double>(n))) <=
-               features ||
-           n - static_cast<size_t>(std::lround(o.train_fraction * static_cast<double>(n))) < 2)
+    while (TrainingSplitSize(n, o.train_fraction) <= features ||
+           n - TrainingSplitSize(n, o.train_fraction) < 2)
       ++n;
     min_poses = min_poses == 0 ? n : std::min(min_poses, n);
   }
@@ -223,8 +228,7 @@ HallCalibrationResult CalibrateHall(const HallCalibrationInput& in,
   const Eigen::Vector3d scale = OutputScale(in.poses);
   std::mt19937_64 rng(o.seed);
   const size_t n = in.poses.size();
-  const size_t n_train =
-      std::clamp<size_t>(static_cast<size_t>(std::lround(o.train_fraction * n)), 1, n - 1);
+  const size_t n_train = TrainingSplitSize(n, o.train_fraction);
   // The splits (poses and the foregrounds of their readings), kept for a second pass of fits.
   struct Split {
     std::vector<PoseSample> train, test;

@@ -21,6 +21,14 @@ double MeanAround(const cv::Mat& gray, const Eigen::Vector2d& p, int half) {
   return cv::mean(gray(cv::Rect(x0, y0, x1 - x0 + 1, y1 - y0 + 1)))[0];
 }
 
+// `gray` where `mask` (optional) is nonzero, mid-grey (128 in 8-bit units) elsewhere.
+cv::Mat FillOutsideMask(const cv::Mat& gray, const cv::Mat& mask) {
+  if (mask.empty()) return gray;
+  cv::Mat masked(gray.size(), gray.type(), cv::Scalar(128));
+  gray.copyTo(masked, mask);
+  return masked;
+}
+
 }  // namespace
 
 std::string CheckerboardOptions::Validate() const {
@@ -56,12 +64,7 @@ cv::Mat ToGray32F(const cv::Mat& image, const cv::Mat& mask) {
     cv::cvtColor(f, gray, cv::COLOR_BGR2GRAY);
   else
     gray = f;
-  if (!mask.empty()) {
-    cv::Mat masked(gray.size(), CV_32F, cv::Scalar(128));
-    gray.copyTo(masked, mask);
-    gray = masked;
-  }
-  return gray;
+  return FillOutsideMask(gray, mask);
 }
 
 cv::Mat ToGray8(const cv::Mat& image) {
@@ -234,12 +237,7 @@ std::optional<CheckerboardDetection> DetectCheckerboard(const cv::Mat& image, Bo
     throw std::invalid_argument("CheckerboardOptions: " + err);
   if (size.cols < 2 || size.rows < 2)
     throw std::invalid_argument("DetectCheckerboard: board needs >= 2x2 inner corners");
-  cv::Mat gray = ToGray8(image);
-  if (!mask.empty()) {
-    cv::Mat masked(gray.size(), CV_8U, cv::Scalar(128));
-    gray.copyTo(masked, mask);
-    gray = masked;
-  }
+  const cv::Mat gray = FillOutsideMask(ToGray8(image), mask);
   // The chain: SB on a ladder of coarse scales (it succeeds or fails somewhat erratically with
   // the square size in pixels), SB at full resolution, SB upscaled (small squares), classic.
   const int side = std::max(gray.cols, gray.rows);
@@ -312,8 +310,7 @@ std::optional<CheckerboardDetection> DetectCheckerboard(const cv::Mat& image, Bo
     if (options.fit_corners) {
       const cv::Mat levels = ToGray32F(image, mask);
       const auto at = [&](int r, int c) { return grid[r * size.cols + c]; };
-      std::vector<Eigen::Vector2d> fitted = grid;
-      int nfit = 0;
+      std::vector<Eigen::Vector2d> fitted = grid;  // directions from the unfitted neighbours
       for (int r = 0; r < size.rows; ++r)
         for (int c = 0; c < size.cols; ++c) {
           const Eigen::Vector2d row_dir =
@@ -322,11 +319,10 @@ std::optional<CheckerboardDetection> DetectCheckerboard(const cv::Mat& image, Bo
               r + 1 < size.rows ? at(r + 1, c) - at(r, c) : at(r, c) - at(r - 1, c);
           if (const auto f = FitCorner(levels, at(r, c), row_dir, col_dir, half)) {
             fitted[r * size.cols + c] = f->px;
-            ++nfit;
+            ++corners_fitted;
           }
         }
-      corners_fitted = nfit;
-      grid = fitted;
+      grid = std::move(fitted);
     }
     CheckerboardDetection det;
     det.corners_px = CanonicalCornerOrder(grid, size, gray);

@@ -24,6 +24,9 @@ constexpr double kInvSqrt2Pi = 0.3989422804014327;
 // model would lock onto the pixel grid: 0.2 px off on a rendered board of 4x4-supersampled
 // edges without optics blur).
 const double kPixelSigma = std::sqrt(1.0 / 12.0);
+// Largest |cos| between the two edge normals: narrower wedges (edges within ~25 degrees of each
+// other) are refused, and Sheppard's integral below stays well conditioned.
+constexpr double kMaxAbsRho = 0.9;
 
 double Phi(double x) { return 0.5 * std::erfc(-x / std::sqrt(2.0)); }
 
@@ -33,7 +36,7 @@ double Phi(double x) { return 0.5 * std::erfc(-x / std::sqrt(2.0)); }
 // cos = rho. With P2(h, k; rho) = P(X > 0, Y > 0) = Phi(h) Phi(k) + T, the pattern is
 // 4 P2 - 2 Phi(h) - 2 Phi(k) + 1 = (2 Phi(h) - 1)(2 Phi(k) - 1) + 4 T, where
 // T = 1/(2 pi) int_0^asin(rho) exp(-(h^2 + k^2 - 2 h k sin t) / (2 cos^2 t)) dt (Sheppard),
-// by 10-point Gauss-Legendre (|rho| <= 0.9 here).
+// by 10-point Gauss-Legendre (|rho| <= kMaxAbsRho here).
 double CheckerPattern(double h, double k, double rho) {
   static constexpr std::array<double, 5> kX = {0.1488743389816312, 0.4333953941292472,
                                                0.6794095682990244, 0.8650633666889845,
@@ -62,7 +65,7 @@ double Model(const Vec& p, const Sample& s, const Eigen::Vector2d& x0, Vec* jac)
   const double c1 = std::cos(p(2)), s1 = std::sin(p(2));
   const double c2 = std::cos(p(3)), s2 = std::sin(p(3));
   const double sigma = p(4);
-  const double rho = std::clamp(c1 * c2 + s1 * s2, -0.9, 0.9);
+  const double rho = std::clamp(c1 * c2 + s1 * s2, -kMaxAbsRho, kMaxAbsRho);
   const double h = (c1 * dx + s1 * dy) / sigma, k = (c2 * dx + s2 * dy) / sigma;
   const double pattern = CheckerPattern(h, k, rho);
   const double g0 = s.x - x0.x(), g1 = s.y - x0.y();
@@ -88,6 +91,22 @@ double Model(const Vec& p, const Sample& s, const Eigen::Vector2d& x0, Vec* jac)
   }
   return reflected * light;
 }
+
+// J^T J (full, symmetric) and J^T r of the model at p.
+void NormalEquations(const Vec& p, const std::vector<Sample>& samples, const Eigen::Vector2d& x0,
+                     Mat* jtj, Vec* jtr) {
+  jtj->setZero();
+  jtr->setZero();
+  for (const auto& s : samples) {
+    Vec j;
+    const double res = s.level - Model(p, s, x0, &j);
+    jtj->selfadjointView<Eigen::Lower>().rankUpdate(j);
+    *jtr += j * res;
+  }
+  *jtj = jtj->selfadjointView<Eigen::Lower>();
+}
+
+bool NarrowWedge(const Vec& p) { return std::abs(std::cos(p(2) - p(3))) > kMaxAbsRho; }
 
 double Cost(const Vec& p, const std::vector<Sample>& samples, const Eigen::Vector2d& x0) {
   double c = 0;
@@ -130,8 +149,7 @@ std::optional<CornerFit> FitCorner(const cv::Mat& image, const Eigen::Vector2d& 
   p(2) = std::atan2(row_dir.x(), -row_dir.y());
   p(3) = std::atan2(col_dir.x(), -col_dir.y());
   p(4) = 1.0;
-  // The corner must not be a near-degenerate wedge (edges within ~25 degrees of each other).
-  if (std::abs(std::cos(p(2) - p(3))) > 0.9) return std::nullopt;
+  if (NarrowWedge(p)) return std::nullopt;
   // Levels (a, b) for the starting geometry, even light.
   {
     Eigen::Matrix2d n = Eigen::Matrix2d::Zero();
@@ -153,16 +171,9 @@ std::optional<CornerFit> FitCorner(const cv::Mat& image, const Eigen::Vector2d& 
   double lambda = 1e-3;
   int it = 0;
   Mat jtj;
+  Vec jtr;
   for (; it < options.max_iterations; ++it) {
-    jtj.setZero();
-    Vec jtr = Vec::Zero();
-    for (const auto& s : samples) {
-      Vec j;
-      const double res = s.level - Model(p, s, start, &j);
-      jtj.selfadjointView<Eigen::Lower>().rankUpdate(j);
-      jtr += j * res;
-    }
-    jtj = jtj.selfadjointView<Eigen::Lower>();
+    NormalEquations(p, samples, start, &jtj, &jtr);
     bool stepped = false, converged = false;
     Vec step = Vec::Zero();
     // At the blur's floor with the gradient pushing below it, the blur stays fixed this step.
@@ -181,7 +192,7 @@ std::optional<CornerFit> FitCorner(const cv::Mat& image, const Eigen::Vector2d& 
       if (!step.allFinite()) return std::nullopt;
       Vec q = p + step;
       q(4) = std::max(q(4), kPixelSigma);
-      const double c = std::abs(std::cos(q(2) - q(3))) > 0.9 ? HUGE_VAL : Cost(q, samples, start);
+      const double c = NarrowWedge(q) ? HUGE_VAL : Cost(q, samples, start);
       if (c < cost) {
         converged = cost - c < 1e-10 * cost || step.head<2>().norm() < 1e-4;
         p = q;
@@ -200,13 +211,7 @@ std::optional<CornerFit> FitCorner(const cv::Mat& image, const Eigen::Vector2d& 
       std::abs(p(6)) < options.min_contrast)
     return std::nullopt;
   // Information at the solution.
-  jtj.setZero();
-  for (const auto& s : samples) {
-    Vec j;
-    Model(p, s, start, &j);
-    jtj.selfadjointView<Eigen::Lower>().rankUpdate(j);
-  }
-  jtj = jtj.selfadjointView<Eigen::Lower>();
+  NormalEquations(p, samples, start, &jtj, &jtr);
   Eigen::FullPivLU<Mat> lu(jtj);
   if (!lu.isInvertible()) return std::nullopt;
   const double dof = static_cast<double>(samples.size()) - kParams;
