@@ -235,6 +235,7 @@ struct Table1Args {
   uint64_t seed = 1;
   std::string out;
   std::vector<int> rows;
+  std::string config;  // solve.yaml for every row's solve (empty: the defaults)
 };
 
 struct Table1Row {
@@ -263,6 +264,10 @@ void MeanSd(const std::vector<double>& v, double* rms, double* sd) {
 }
 
 void RunTable1(const Table1Args& args) {
+  solver::PipelineOptions options;
+  if (!args.config.empty()) options = results::ReadSolveOptions(args.config, options);
+  if (const std::string e = options.Validate(); !e.empty())
+    throw std::runtime_error("solve settings: " + e);
   const double spans[3] = {18.0, 27.0, 46.0};
   std::vector<Table1Row> table;
   size_t rows_to_run = 0;
@@ -302,7 +307,7 @@ void RunTable1(const Table1Args& args) {
       row.name = std::string("Pattern-") + (pattern == 0 ? "A-" : "B-") + std::to_string(index);
       solver::SolveOutput out;
       try {
-        out = solver::SolveRecording(rec, load);
+        out = solver::SolveRecording(rec, load, options);
       } catch (const solver::SolveError& e) {
         // One unsolvable session must not lose the other rows: report it in the table.
         std::printf("%s failed: %s\n", row.name.c_str(), e.what());
@@ -413,6 +418,10 @@ void AddSolveCommands(CLI::App& app) {
   table1->add_option("--seed", t1->seed, "Base seed of the simulated sessions");
   table1->add_option("--out", t1->out, "Also write the Markdown table to this file");
   table1->add_option("--rows", t1->rows, "Only these rows (1..6)");
+  table1
+      ->add_option("--config", t1->config,
+                   "Solver settings for every row (solve.yaml, as msmcal solve --config)")
+      ->check(CLI::ExistingFile);
   table1->callback([t1]() { RunTable1(*t1); });
 }
 

@@ -45,6 +45,8 @@ std::string CheckerboardOptions::Validate() const {
     s << "refine_window_squares = " << refine_window_squares << " must be in (0, 0.5]";
   else if (!(refine_window_min_px >= 0 && refine_window_min_px <= 15))
     s << "refine_window_min_px = " << refine_window_min_px << " must be in [0, 15]";
+  else if (!(fit_max_radius_px >= 2 && fit_max_radius_px <= 15))
+    s << "fit_max_radius_px = " << fit_max_radius_px << " must be in [2, 15]";
   else if (!(max_grid_irregularity_squares > 0 && max_grid_irregularity_squares <= 1))
     s << "max_grid_irregularity_squares = " << max_grid_irregularity_squares
       << " must be in (0, 1]";
@@ -309,6 +311,8 @@ std::optional<CheckerboardDetection> DetectCheckerboard(const cv::Mat& image, Bo
     int corners_fitted = 0;
     if (options.fit_corners) {
       const cv::Mat levels = ToGray32F(image, mask);
+      CornerFitOptions fit_options;
+      fit_options.max_radius_px = options.fit_max_radius_px;
       const auto at = [&](int r, int c) { return grid[r * size.cols + c]; };
       std::vector<Eigen::Vector2d> fitted = grid;  // directions from the unfitted neighbours
       for (int r = 0; r < size.rows; ++r)
@@ -317,7 +321,7 @@ std::optional<CheckerboardDetection> DetectCheckerboard(const cv::Mat& image, Bo
               c + 1 < size.cols ? at(r, c + 1) - at(r, c) : at(r, c) - at(r, c - 1);
           const Eigen::Vector2d col_dir =
               r + 1 < size.rows ? at(r + 1, c) - at(r, c) : at(r, c) - at(r - 1, c);
-          if (const auto f = FitCorner(levels, at(r, c), row_dir, col_dir, half)) {
+          if (const auto f = FitCorner(levels, at(r, c), row_dir, col_dir, half, fit_options)) {
             fitted[r * size.cols + c] = f->px;
             ++corners_fitted;
           }

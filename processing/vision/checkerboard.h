@@ -58,8 +58,10 @@ struct CheckerboardOptions {
   double max_grid_irregularity_squares = 0.25;
   // After cornerSubPix, each corner is refined by fitting a model of a blurred corner to the
   // levels within the same window (vision/corner_fit.h); a corner whose fit fails keeps
-  // cornerSubPix's point.
+  // cornerSubPix's point. The fit reads the same window as cornerSubPix, but at most
+  // fit_max_radius_px around the corner.
   bool fit_corners = true;
+  double fit_max_radius_px = 8;
   std::string Validate() const;
 };
 

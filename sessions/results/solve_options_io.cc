@@ -73,6 +73,8 @@ std::vector<Knob> Knobs(solver::PipelineOptions& o) {
        "cornerSubPix half window at least this (px), at most half the corner spacing"},
       {"boards.fit_corners", &o.boards.fit_corners,
        "refine each corner by fitting a blurred-corner model to the same window"},
+      {"boards.fit_max_radius_px", &o.boards.fit_max_radius_px,
+       "the corner model fit reads the refinement window, at most this radius (px)"},
       {"boards.max_grid_irregularity_squares", &o.boards.max_grid_irregularity_squares,
        "refuse a grid with a corner this far off its neighbours' line (squares)"},
       {"step1_dot_margin_squares", &o.step1_dot_margin_squares,

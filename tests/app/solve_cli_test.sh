@@ -37,6 +37,17 @@ if "$msmcal" solve "$dir/s" --config "$dir/typo.yaml" > "$dir/out" 2>&1; then
   echo "expected a refusal"; exit 1
 fi
 grep -q "typo.yaml:2: dots.min_pixel: unknown setting" "$dir/out"
+printf 'boards:\n  fit_max_radius_px: 40\n' > "$dir/radius.yaml"
+if "$msmcal" solve "$dir/s" --config "$dir/radius.yaml" > "$dir/out" 2>&1; then
+  echo "expected a refusal"; exit 1
+fi
+grep -q "fit_max_radius_px = 40" "$dir/out" && grep -q "\[2, 15\]" "$dir/out"
+# experiment table1 takes the same settings, refused before any row is simulated.
+if "$msmcal" experiment table1 --config "$dir/radius.yaml" > "$dir/out" 2>&1; then
+  echo "expected a refusal"; exit 1
+fi
+grep -q "radius.yaml: invalid setting: boards.fit_max_radius_px = 40" "$dir/out"
+! grep -q "Pattern-" "$dir/out"
 # A good one: solved, with the values used written back, and they read back.
 printf 'dots:\n  min_pixels: 6\nmax_surface_elongation: 2.5\nboards:\n  fit_corners: false\n' > "$dir/good.yaml"
 "$msmcal" solve "$dir/s" --config "$dir/good.yaml" > "$dir/solve.out" 2>&1 || { cat "$dir/solve.out"; exit 1; }
