@@ -72,16 +72,29 @@ Foreground MakeForeground(const Mapped& actual, const Mapped& background, double
   return f;
 }
 
-// Error normalisation for choosing the best model: degrees and millimetres are compared through
-// the spread of each output.
 // Poses in a training split of n (n >= 2): the fraction, rounded, at least one, at most n - 1.
 size_t TrainingSplitSize(size_t n, double train_fraction) {
   return std::clamp<size_t>(
       static_cast<size_t>(std::lround(train_fraction * static_cast<double>(n))), 1, n - 1);
 }
 
+// Error normalisation for choosing the best model (HallCalibrationResult::best): each output's
+// test RMS in units of how precisely the poses were measured (the RMS of their sigmas), so the
+// score is the held-out chi-square per pose. An output whose range is hardly larger than its
+// noise (trans at a small slow drive) then weighs what its precision says, not as much as the
+// others: normalised by the range, no model has skill in it and its noise decided the ranking
+// (session 12: linear at 0.34 / 0.27 deg chosen over sine at 0.05 / 0.04 deg). Poses without
+// sigmas (a simulator's truth) fall back to each output's spread over the poses.
 Eigen::Vector3d OutputScale(const std::vector<PoseSample>& poses) {
+  const bool with_sigmas =
+      !poses.empty() && std::all_of(poses.begin(), poses.end(), [](const PoseSample& p) {
+        return p.sigma.allFinite() && (p.sigma.array() > 0).all();
+      });
   Eigen::Vector3d mean = Eigen::Vector3d::Zero(), ss = Eigen::Vector3d::Zero();
+  if (with_sigmas) {
+    for (const auto& p : poses) ss += p.sigma.cwiseAbs2();
+    return (ss / poses.size()).cwiseSqrt();
+  }
   for (const auto& p : poses) mean += p.pose;
   mean /= poses.size();
   for (const auto& p : poses) ss += (p.pose - mean).cwiseAbs2();

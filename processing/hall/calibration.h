@@ -88,7 +88,7 @@ struct HallCalibrationResult {
   // CalibrateHall throws.
   std::vector<ModelStats> table;
   std::vector<std::string> skipped_models;
-  HallModelKind best = HallModelKind::kLinear;  // lowest mean test RMS (normalised per output)
+  HallModelKind best = HallModelKind::kLinear;  // lowest held-out chi-square (OutputScale in the .cc)
   HallFitResult final_fit;                      // best model refitted on every pose and reading
   Foreground foreground;                        // from every reading
   // The session's dt: a field model's, judged by IdentifyDeltaT (the best model when it is a

@@ -52,6 +52,9 @@ struct HallModel {
 struct PoseSample {
   double t_s = 0;
   Eigen::Vector3d pose = Eigen::Vector3d::Zero();  // alpha_deg, beta_deg, trans_mm
+  // 1-sigma of the measured pose, same units (the solver's MLE covariance, mirror_planes.csv
+  // sigma_*); zero when unknown (poses taken from a simulator's truth).
+  Eigen::Vector3d sigma = Eigen::Vector3d::Zero();
 };
 
 // Foreground field as a function of generator time (periodic in the pattern period).

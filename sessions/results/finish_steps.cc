@@ -196,6 +196,7 @@ HallCalibrationSetup MakeHallCalibrationSetup(const dataset::Recording& rec,
     hall::PoseSample ps;
     ps.t_s = p.t_s;
     ps.pose = Eigen::Vector3d(p.alpha_deg, p.beta_deg, p.trans_mm);
+    ps.sigma = Eigen::Vector3d(p.sigma_alpha_deg, p.sigma_beta_deg, p.sigma_trans_mm);
     s.poses.push_back(ps);
   }
   return s;
