@@ -89,6 +89,17 @@ void RunExplain(const SolveArgs& args, const solver::PipelineOptions& options) {
   std::printf("%s: %dx%d, %d channel(s), %d-bit, levels %.0f..%.0f\n%s\n", args.explain.c_str(),
               img.cols, img.rows, img.channels(), img.depth() == CV_16U ? 16 : 8, lo, hi,
               what.c_str());
+  if (img.channels() == 3) {
+    const int parity = vision::InterpolatedGreenParity(img);
+    if (parity < 0)
+      std::printf("green channel: measured at every pixel (no Bayer interpolation seen)\n");
+    else
+      std::printf(
+          "green channel: interpolated where (x + y) is %s (a Bayer sensor's demosaicing): dots "
+          "are fitted to the measured half%s\n",
+          parity == 0 ? "even" : "odd",
+          options.dots.native_green_only ? "" : " only with dots.native_green_only (now off)");
+  }
   const auto t0 = std::chrono::steady_clock::now();
   const solver::ImageMeasurement m = solver::MeasureFrame(img, asks, expected, options);
   const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

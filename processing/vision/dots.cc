@@ -313,15 +313,16 @@ double FitThroughResponse(const std::vector<ResponsePixel>& px, double amplitude
 // from `original` (the image before the top-hat).
 template <typename T>
 std::vector<FitPixel> WindowPixels(const cv::Mat& signal_image, const cv::Mat& original,
-                                   const cv::Rect& window, double full) {
+                                   const cv::Rect& window, double full, int skip_parity) {
   std::vector<FitPixel> px;
   px.reserve(window.area());
   for (int y = window.y; y < window.y + window.height; ++y) {
     const T* r = signal_image.ptr<T>(y);
     const T* o = original.ptr<T>(y);
     for (int x = window.x; x < window.x + window.width; ++x)
-      px.push_back({static_cast<double>(x), static_cast<double>(y), static_cast<double>(r[x]),
-                    o[x] >= full});  // `full`: the blob's plateau level (Dot::plateau_level)
+      if ((x + y) % 2 != skip_parity)  // an interpolated green (InterpolatedGreenParity)
+        px.push_back({static_cast<double>(x), static_cast<double>(y), static_cast<double>(r[x]),
+                      o[x] >= full});  // `full`: the blob's plateau level (Dot::plateau_level)
   }
   return px;
 }
@@ -373,7 +374,8 @@ double PlateauLevel(const cv::Mat& original, const cv::Rect& box, int full, doub
 // read from `original`.
 template <typename T>
 std::vector<Dot> Detect(const cv::Mat& image, const cv::Mat& original, cv::Mat1b& candidates,
-                        const DotOptions& o, DotRejections* rej, std::vector<DotCandidate>* seen) {
+                        const DotOptions& o, int skip_parity, DotRejections* rej,
+                        std::vector<DotCandidate>* seen) {
   const int full = sizeof(T) == 1 ? 255 : 65535;
   const int w = image.cols, h = image.rows;
   std::vector<std::pair<int, int>> stack;
@@ -496,7 +498,7 @@ std::vector<Dot> Detect(const cv::Mat& image, const cv::Mat& original, cv::Mat1b
       if (o.centre == DotCentre::kGaussianFit) {
         Dot fit = dot;
         if (FitGaussian(WindowPixels<T>(image, original, DotFitWindow(dot, image.size(), o),
-                                        dot.plateau_level),
+                                        dot.plateau_level, skip_parity),
                         &fit) &&
             (fit.px - dot.px).norm() <= o.max_fit_shift_px)
           dot = fit;
@@ -578,6 +580,7 @@ std::vector<Dot> DetectDotsImpl(const cv::Mat& image, const cv::Mat& background,
     cv::extractChannel(image, green, 1);
     mono = green;
   }
+  const int skip_parity = bgr && options.native_green_only ? InterpolatedGreenParity(image) : -1;
   // The top-hat goes into its own buffer: the caller's image is const and is read below for
   // saturation.
   cv::Mat signal = mono;
@@ -619,8 +622,9 @@ std::vector<Dot> DetectDotsImpl(const cv::Mat& image, const cv::Mat& background,
   DotRejections local;
   std::vector<Dot> dots =
       mono.depth() == CV_8U
-          ? Detect<uint8_t>(signal, mono, candidates, options, &local, candidates_out)
-          : Detect<uint16_t>(signal, mono, candidates, options, &local, candidates_out);
+          ? Detect<uint8_t>(signal, mono, candidates, options, skip_parity, &local, candidates_out)
+          : Detect<uint16_t>(signal, mono, candidates, options, skip_parity, &local,
+                             candidates_out);
   if (bgr) {
     // Over a background, the difference says what the spot added: laser light adds green.
     const cv::Mat& colour = background.empty() ? image : difference;
@@ -869,7 +873,54 @@ void ReadSignal(const cv::Mat& image, const cv::Rect& window, cv::Mat1f* signal,
 
 }  // namespace
 
-DotSignalPatch ReadDotSignal(const cv::Mat& image, const cv::Rect& window) {
+namespace {
+
+template <typename T>
+int InterpolatedGreenParityT(const cv::Mat& image) {
+  // Per parity of (x + y): green values strictly outside the range of their four neighbours'
+  // greens, of the pixels whose neighbours differ at all (flat areas tell nothing).
+  std::array<int64_t, 2> outside{0, 0}, textured{0, 0};
+  for (int y = 1; y + 1 < image.rows; y += 3) {
+    const T* up = image.ptr<T>(y - 1);
+    const T* row = image.ptr<T>(y);
+    const T* down = image.ptr<T>(y + 1);
+    for (int x = 1; x + 1 < image.cols; ++x) {
+      const int g = row[3 * x + 1];
+      const int a = row[3 * (x - 1) + 1], b = row[3 * (x + 1) + 1], c = up[3 * x + 1],
+                d = down[3 * x + 1];
+      const int lo = std::min(std::min(a, b), std::min(c, d));
+      const int hi = std::max(std::max(a, b), std::max(c, d));
+      if (hi == lo && g == lo) continue;
+      const int p = (x + y) & 1;
+      ++textured[p];
+      if (g < lo || g > hi) ++outside[p];
+    }
+  }
+  constexpr int64_t kMinEvidence = 200;  // outside pixels of the measured parity
+  constexpr double kRatio = 0.1;
+  if (textured[0] == 0 || textured[1] == 0) return -1;
+  const double f0 = static_cast<double>(outside[0]) / static_cast<double>(textured[0]);
+  const double f1 = static_cast<double>(outside[1]) / static_cast<double>(textured[1]);
+  if (f0 <= kRatio * f1 && outside[1] >= kMinEvidence) return 0;
+  if (f1 <= kRatio * f0 && outside[0] >= kMinEvidence) return 1;
+  return -1;
+}
+
+}  // namespace
+
+int InterpolatedGreenParity(const cv::Mat& image) {
+  switch (image.type()) {
+    case CV_8UC3:
+      return InterpolatedGreenParityT<uint8_t>(image);
+    case CV_16UC3:
+      return InterpolatedGreenParityT<uint16_t>(image);
+    default:
+      return -1;
+  }
+}
+
+DotSignalPatch ReadDotSignal(const cv::Mat& image, const cv::Rect& window,
+                             int interpolated_parity) {
   if ((window & cv::Rect(0, 0, image.cols, image.rows)) != window || window.empty())
     throw std::invalid_argument("ReadDotSignal: window outside the image");
   DotSignalPatch p;
@@ -878,6 +929,7 @@ DotSignalPatch ReadDotSignal(const cv::Mat& image, const cv::Rect& window) {
   p.level = cv::Mat1f(window.size(), 0.0f);
   p.saturated = cv::Mat1b(window.size(), uchar{0});
   p.full_scale = image.depth() == CV_16U ? 65535 : 255;
+  p.interpolated_parity = interpolated_parity;
   ReadSignal(image, window, &p.signal, &p.saturated, nullptr, &p.level);
   return p;
 }
@@ -942,6 +994,7 @@ bool RefineDotOnBackground(const DotSignalPatch& own, const BackgroundPatch& bac
       const bool censored = own.saturated(y, x) != 0 ||
                             (dot->plateau_level > 0 && own.level(y, x) >= dot->plateau_level);
       const double px_x = own.window.x + x, px_y = own.window.y + y;
+      if ((own.window.x + x + own.window.y + y) % 2 == own.interpolated_parity) continue;
       px.push_back({px_x, px_y, own.signal(y, x) - bg, censored});
       rpx.push_back({px_x, px_y, own.signal(y, x) / full, bg / full, censored});
     }

@@ -50,6 +50,8 @@ std::vector<Knob> Knobs(solver::PipelineOptions& o) {
        "BGR: least green - max(blue, red) of a laser blob, fraction of full scale"},
       {"dots.centre", &o.dots.centre, "gaussian_fit or weighted_centroid"},
       {"dots.fit_margin_px", &o.dots.fit_margin_px, "Gaussian fit window: blob box grown by this"},
+      {"dots.native_green_only", &o.dots.native_green_only,
+       "BGR from a Bayer sensor: fit spots to the measured greens only (detected per image)"},
       {"dots.max_fit_shift_px", &o.dots.max_fit_shift_px,
        "a fit moving the centre further than this keeps the centroid"},
       {"dots.background_mask_margin_px", &o.dots.background_mask_margin_px,

@@ -303,9 +303,11 @@ void RefineDotsOnBackgrounds(const std::vector<std::vector<size_t>>& groups,
       rects.push_back(
           vision::DotFitWindow((*measured)[w.image].dots[w.dot], img.size(), dot_options));
     contribution[i] = vision::BackgroundContribution(img, (*measured)[i].dots, rects, dot_options);
+    const int interpolated =
+        dot_options.native_green_only ? vision::InterpolatedGreenParity(img) : -1;
     for (const auto& d : (*measured)[i].dots)
-      own[i].push_back(
-          vision::ReadDotSignal(img, vision::DotFitWindow(d, img.size(), dot_options)));
+      own[i].push_back(vision::ReadDotSignal(img, vision::DotFitWindow(d, img.size(), dot_options),
+                                             interpolated));
   });
   for (size_t g = 0; g < groups.size(); ++g) {
     if (windows[g].empty()) continue;
