@@ -27,6 +27,29 @@ PngFolderWriter::PngFolderWriter(PngWriterOptions options) : options_(std::move(
   std::filesystem::create_directories(options_.dir);
 }
 
+cv::Mat FrameImage(const camera::Frame& frame) {
+  const camera::FrameInfo& info = frame.info();
+  int type = CV_8UC1;
+  if (info.pixel_format == camera::PixelFormat::kMono16) type = CV_16UC1;
+  if (info.pixel_format == camera::PixelFormat::kRGB8) type = CV_8UC3;
+  const cv::Mat view(info.height, info.width, type, const_cast<uint8_t*>(frame.data()),
+                     frame.stride_bytes());
+  cv::Mat out;
+  switch (info.pixel_format) {
+    case camera::PixelFormat::kMono8:
+    case camera::PixelFormat::kMono16:
+      return view;
+    case camera::PixelFormat::kRGB8:
+      cv::cvtColor(view, out, cv::COLOR_RGB2BGR);
+      return out;
+    case camera::PixelFormat::kBayerRG8:
+      // OpenCV names a mosaic by its second row: GenICam's BayerRG (R G / G B) is "BayerBG".
+      cv::cvtColor(view, out, cv::COLOR_BayerBG2BGR);
+      return out;
+  }
+  return view;
+}
+
 std::filesystem::path PngFolderWriter::PathFor(uint64_t index) const {
   char name[32];
   std::snprintf(name, sizeof(name), "%06llu.png", static_cast<unsigned long long>(index));
@@ -36,16 +59,8 @@ std::filesystem::path PngFolderWriter::PathFor(uint64_t index) const {
 FrameSink::Result PngFolderWriter::Write(const camera::Frame& frame, uint64_t index) {
   Result result;
   const std::filesystem::path path = PathFor(index);
-  const camera::FrameInfo& info = frame.info();
-  // A view of the driver's buffer: no copy until the encoder reads it.
-  int type = CV_8UC1;
-  if (info.pixel_format == camera::PixelFormat::kMono16) type = CV_16UC1;
-  if (info.pixel_format == camera::PixelFormat::kRGB8) type = CV_8UC3;
-  const cv::Mat view(info.height, info.width, type, const_cast<uint8_t*>(frame.data()),
-                     frame.stride_bytes());
-  cv::Mat to_encode = view;
-  if (info.pixel_format == camera::PixelFormat::kRGB8)
-    cv::cvtColor(view, to_encode, cv::COLOR_RGB2BGR);
+  // Mono: a view of the driver's buffer, no copy until the encoder reads it.
+  const cv::Mat to_encode = FrameImage(frame);
   thread_local std::vector<uint8_t> encoded;
   encoded.clear();
   if (!cv::imencode(".png", to_encode, encoded,

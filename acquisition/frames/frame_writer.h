@@ -1,16 +1,25 @@
 #pragma once
 // Where grabbed frames go: a FrameSink. PngFolderWriter writes DIR/<prefix>NNNNNN.png (the
 // interchange format's image files), atomically (temporary file, then rename: a reader never
-// sees a partial PNG). Mono8/BayerRG8 -> 8-bit grey (Bayer raw, not demosaiced), Mono16 ->
-// 16-bit grey, RGB8 -> 3-channel PNG.
+// sees a partial PNG), as the image FrameImage gives: Mono8 -> 8-bit grey, Mono16 -> 16-bit
+// grey, RGB8 and BayerRG8 -> 3-channel BGR.
 
 #include <cstdint>
 #include <filesystem>
+#include <opencv2/core.hpp>
 #include <string>
 
 #include "drivers/camera/camera.h"
 
 namespace msmcal::frames {
+
+// A frame as the interchange format's image (1 channel mono or 3 channels BGR): Mono8 and
+// Mono16 as a view of the frame's buffer (valid while the frame is), RGB8 converted to BGR,
+// and BayerRG8 (R G / G B from the first pixel) demosaiced bilinearly into BGR. A Bayer raw
+// written as grey would read as a mono image whose green spots are a checkerboard of measured
+// and dark pixels; demosaiced, the solver sees the colour image it expects and recognises the
+// interpolated half of its green (vision::InterpolatedGreenParity), where it fits no spot.
+cv::Mat FrameImage(const camera::Frame& frame);
 
 class FrameSink {
  public:

@@ -15,6 +15,7 @@
 #include <stdexcept>
 #include <thread>
 
+#include "acquisition/frames/frame_writer.h"
 #include "acquisition/hall/hall_csv_writer.h"
 #include "acquisition/hall/hall_recorder.h"
 #include "drivers/generator/function_generator.h"
@@ -156,24 +157,10 @@ class TranscriptFile {
   std::function<void()> on_trigger_;
 };
 
+// The frame as the solver would read it from its PNG (frames::FrameImage), owning its pixels.
 cv::Mat FrameToMat(const camera::Frame& frame) {
-  const auto& info = frame.info();
-  int type = CV_8UC1;
-  switch (info.pixel_format) {
-    case camera::PixelFormat::kMono8:
-    case camera::PixelFormat::kBayerRG8:
-      type = CV_8UC1;
-      break;
-    case camera::PixelFormat::kMono16:
-      type = CV_16UC1;
-      break;
-    case camera::PixelFormat::kRGB8:
-      type = CV_8UC3;
-      break;
-  }
-  cv::Mat view(info.height, info.width, type, const_cast<uint8_t*>(frame.data()),
-               frame.stride_bytes());
-  return view.clone();
+  const cv::Mat image = frames::FrameImage(frame);
+  return image.data == frame.data() ? image.clone() : image;
 }
 
 // Streams the camera to OrchestratorOptions::on_live_frame while the operator is asked (see
