@@ -276,7 +276,13 @@ std::string Bad(const std::string& field, double value, const std::string& const
          ". Violated constraint: " + constraint;
 }
 
-long long Millihertz(double f) { return std::llround(f * 1000.0); }
+constexpr double kMaxFrequencyHz = 30e6;
+
+// 0 for a frequency outside (0, kMaxFrequencyHz]: llround of an out-of-range value is
+// unspecified and std::gcd of LLONG_MIN undefined (fuzz finding 6, docs/fuzzing.md).
+long long Millihertz(double f) {
+  return f > 0 && f <= kMaxFrequencyHz ? std::llround(f * 1000.0) : 0;
+}
 
 }  // namespace
 
@@ -291,7 +297,9 @@ std::string SimOptions::Validate() const {
   for (const auto& [name, a] :
        {std::pair<std::string, const AxisOptions*>{"mirror.fast", &mirror.fast},
         {"mirror.slow", &mirror.slow}}) {
-    if (!(a->frequency_hz > 0)) return Bad(name + ".frequency_hz", a->frequency_hz, "> 0");
+    // Upper bound: the 33520B's sine limit, and it keeps the mHz count inside a long long.
+    if (!(a->frequency_hz > 0 && a->frequency_hz <= kMaxFrequencyHz))
+      return Bad(name + ".frequency_hz", a->frequency_hz, "in (0, 30e6] (the 33520B's sine range)");
     if (std::abs(a->frequency_hz * 1000 - std::round(a->frequency_hz * 1000)) > 1e-6)
       return Bad(name + ".frequency_hz", a->frequency_hz, "a whole number of mHz");
     if (!(a->amplitude_vpp >= 0)) return Bad(name + ".amplitude_vpp", a->amplitude_vpp, ">= 0");

@@ -102,6 +102,16 @@ TEST(SimOptionsTest, OverridesAndErrorsNameTheField) {
       EXPECT_NE(std::string(e.what()).find("key.yaml:1"), std::string::npos) << e.what();
     }
   }
+  // Fuzz finding 6 (docs/fuzzing.md): a frequency beyond a long long's mHz reached std::gcd
+  // with an overflowed llround (undefined behaviour) before the range check.
+  try {
+    ParseSimOptions("mirror: {fast: {frequency_hz: 2" + std::string(80, '9') + "}}\n", "f.yaml");
+    FAIL() << "huge frequency accepted";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("mirror.fast.frequency_hz"), std::string::npos)
+        << e.what();
+    EXPECT_NE(std::string(e.what()).find("(0, 30e6]"), std::string::npos) << e.what();
+  }
   try {
     ParseSimOptions("world_board: {cols: 10}\n", "b.yaml");
     FAIL() << "even cols accepted";
