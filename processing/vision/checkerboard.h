@@ -30,8 +30,11 @@ struct BoardSize {
 };
 
 // The detectors of the fallback chain, in the order they are tried.
-enum class BoardMethod { kSbCoarse, kSbFull, kClassic, kSbUpscaled };
-const char* ToString(BoardMethod method);  // "sb_coarse" | "sb_full" | "classic" | "sb_upscaled"
+// kContrastCheck is not a detector: the attempt that stopped the chain on an image without the
+// contrast a board needs (a black, blank or saturated frame; see min_contrast_levels).
+enum class BoardMethod { kSbCoarse, kSbFull, kClassic, kSbUpscaled, kContrastCheck };
+// "sb_coarse" | "sb_full" | "classic" | "sb_upscaled" | "contrast_check"
+const char* ToString(BoardMethod method);
 
 struct CheckerboardOptions {
   // The coarse search runs on an image whose longer side is at most this many pixels.
@@ -62,6 +65,12 @@ struct CheckerboardOptions {
   // fit_max_radius_px around the corner.
   bool fit_corners = true;
   double fit_max_radius_px = 8;
+  // No detector runs on an image whose grey levels (8-bit scale, after a 3 x 3 median and 4 x 4
+  // averaging, which take hot pixels and sensor noise out and keep any region a board could be
+  // seen in) span less than
+  // this between their 0.1 and 99.9 percentiles: a board is dark and light squares. A black
+  // frame cost ~3 s per board in the SB searches and found nothing. 0: always search.
+  double min_contrast_levels = 8;
   std::string Validate() const;
 };
 

@@ -77,6 +77,8 @@ std::vector<Knob> Knobs(solver::PipelineOptions& o) {
        "refine each corner by fitting a blurred-corner model to the same window"},
       {"boards.fit_max_radius_px", &o.boards.fit_max_radius_px,
        "the corner model fit reads the refinement window, at most this radius (px)"},
+      {"boards.min_contrast_levels", &o.boards.min_contrast_levels,
+       "no board search on an image whose grey levels span less (8-bit, 0.1-99.9 %; 0: off)"},
       {"boards.max_grid_irregularity_squares", &o.boards.max_grid_irregularity_squares,
        "refuse a grid with a corner this far off its neighbours' line (squares)"},
       {"step1_dot_margin_squares", &o.step1_dot_margin_squares,

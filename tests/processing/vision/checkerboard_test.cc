@@ -98,5 +98,53 @@ TEST(CheckerboardTest, MissingBoardIsEmpty) {
   EXPECT_FALSE(DetectCheckerboard(cv::Mat1b(200, 200, 128), BoardSize{7, 4}));
 }
 
+// A frame without the contrast a board needs (black with sensor noise and hot pixels, or
+// saturated) stops the chain at the contrast check, saying so; a faint board (20 grey levels
+// between its squares) still reaches the detectors and is found.
+TEST(CheckerboardTest, AFrameWithoutContrastStopsAtTheContrastCheck) {
+  const BoardSize size{7, 4};
+  cv::Mat1b black(340, 400, static_cast<uchar>(3));
+  cv::Mat noise(black.size(), CV_16S);
+  cv::RNG rng(5);
+  rng.fill(noise, cv::RNG::NORMAL, 0, 2);
+  black.convertTo(black, CV_8U);
+  cv::Mat black_noisy;
+  cv::add(black, noise, black_noisy, cv::noArray(), CV_8U);
+  for (int k = 0; k < 60; ++k)  // 0.04 % hot pixels
+    black_noisy.at<uchar>(rng.uniform(0, black.rows), rng.uniform(0, black.cols)) = 255;
+  for (const cv::Mat& img : {black_noisy, cv::Mat(cv::Mat1b(340, 400, 255))}) {
+    std::vector<BoardAttempt> attempts;
+    EXPECT_FALSE(DetectCheckerboard(img, size, {}, cv::Mat(), &attempts));
+    ASSERT_EQ(attempts.size(), 1u);
+    EXPECT_EQ(attempts[0].method, BoardMethod::kContrastCheck);
+    EXPECT_STREQ(ToString(attempts[0].method), "contrast_check");
+    EXPECT_NE(attempts[0].note.find("no contrast"), std::string::npos) << attempts[0].note;
+    EXPECT_NE(attempts[0].note.find("boards.min_contrast_levels"), std::string::npos);
+  }
+  // Off: every detector of the chain is tried.
+  CheckerboardOptions off;
+  off.min_contrast_levels = 0;
+  std::vector<BoardAttempt> attempts;
+  EXPECT_FALSE(DetectCheckerboard(black_noisy, size, off, cv::Mat(), &attempts));
+  ASSERT_GE(attempts.size(), 2u);
+  for (const auto& a : attempts) EXPECT_NE(a.method, BoardMethod::kContrastCheck);
+
+  const double square = 10;
+  const Eigen::Matrix3d h = BoardToImage(15, 2.0, {200, 170}, size, square, 0.0);
+  cv::Mat faint;
+  RenderBoard(h, size, square, cv::Size(400, 340)).convertTo(faint, CV_8U, 20.0 / 190, 100);
+  attempts.clear();
+  const auto det = DetectCheckerboard(faint, size, {}, cv::Mat(), &attempts);
+  ASSERT_TRUE(det) << "a board of 20 grey levels' contrast refused";
+  for (const auto& a : attempts) EXPECT_NE(a.method, BoardMethod::kContrastCheck);
+  EXPECT_NEAR(det->corners_px[0].x(), Apply(h, 0, 0).x(), 0.3);
+  EXPECT_NEAR(det->corners_px[0].y(), Apply(h, 0, 0).y(), 0.3);
+
+  CheckerboardOptions bad;
+  bad.min_contrast_levels = -1;
+  EXPECT_NE(bad.Validate().find("min_contrast_levels = -1 must be in [0, 128]"),
+            std::string::npos);
+}
+
 }  // namespace
 }  // namespace msmcal::vision
