@@ -71,25 +71,34 @@ GateResult CheckFrame(const cv::Mat& image, int step, int dots_expected,
   // A copy: vision::DetectDots writes its top-hat into the caller's pixels (dots.cc:155-161,
   // `signal = image` shares the buffer), and the frame must be saved unchanged.
   r.dots = vision::DetectDots(image.clone(), options.dots);
-  const std::vector<vision::Dot>& dots = r.dots;
-  r.dots_found = static_cast<int>(dots.size());
+  // Only dots inside the visible area of the plane the beams hit count: a blob elsewhere (board
+  // residue on the other board, a reflection in the scene) neither makes nor spoils a frame,
+  // and a beam that missed the plane leaves its count short.
+  const auto outline = vision::SquaresOutline(*found[0], step == 1 ? sliding : world,
+                                              options.outline_margin_squares);
+  const char* plane = step == 1 ? "sliding" : "world";
+  int outside = 0;
+  const vision::Dot* first_outside = nullptr;
+  for (const auto& d : r.dots) {
+    if (vision::InsideOutline(outline, d.px)) {
+      ++r.dots_found;
+    } else if (++outside == 1) {
+      first_outside = &d;
+    }
+  }
   if (r.dots_found < dots_expected || r.dots_found > dots_expected + options.max_extra_dots) {
     r.reason = "expected " + std::to_string(dots_expected) + " dots";
     if (options.max_extra_dots > 0)
       r.reason += " (up to " + std::to_string(options.max_extra_dots) + " extra detections)";
-    r.reason += ", found " + std::to_string(r.dots_found);
-    return r;
-  }
-  const auto outline = vision::SquaresOutline(*found[0], step == 1 ? sliding : world,
-                                              options.outline_margin_squares);
-  for (const auto& d : dots) {
-    if (!vision::InsideOutline(outline, d.px)) {
+    r.reason += " on the " + std::string(plane) + " board's visible area, found " +
+                std::to_string(r.dots_found);
+    if (first_outside) {
       char buf[160];
-      std::snprintf(buf, sizeof(buf), "dot at (%.1f, %.1f) px outside the %s board's visible area",
-                    d.px.x(), d.px.y(), step == 1 ? "sliding" : "world");
-      r.reason = buf;
-      return r;
+      std::snprintf(buf, sizeof(buf), " (%d more outside it, the first at (%.1f, %.1f) px)",
+                    outside, first_outside->px.x(), first_outside->px.y());
+      r.reason += buf;
     }
+    return r;
   }
   r.accepted = true;
   return r;

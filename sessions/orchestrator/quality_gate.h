@@ -1,9 +1,9 @@
 #pragma once
 // Per-frame quality gates applied before a frame is accepted into a session:
 //   step 1: both boards (sliding and world) found; step 2: the world board found;
-//   exactly the expected number of laser dots; no saturation beyond use; every dot inside the
-//   visible area of the board plane it falls on (step 1: the sliding board, step 2: the world
-//   board). A rejected frame says why.
+//   no saturation beyond use; the expected number of laser dots inside the visible area of the
+//   board plane the beams hit (step 1: the sliding board, step 2: the world board; blobs
+//   elsewhere are not counted). A rejected frame says why.
 
 #include <opencv2/core.hpp>
 #include <optional>
@@ -42,14 +42,14 @@ struct GateOptions {
 struct GateResult {
   bool accepted = false;
   std::string reason;  // why it was rejected (empty when accepted)
-  int dots_found = 0;
+  int dots_found = 0;  // inside the plane's visible area
   int dots_expected = 0;
   double saturated_fraction = 0;
   // What the gate detected, for previews and live figures: boards in the order checked
   // (step 1: sliding, world; step 2: world; empty entries were not found; boards after the first
   // missing one are not searched) and the dots (empty when the gate stopped before them).
   std::vector<std::optional<vision::CheckerboardDetection>> boards;
-  std::vector<vision::Dot> dots;
+  std::vector<vision::Dot> dots;  // every dot detected, inside the visible area or not
 };
 
 // step: 1 or 2. dots_expected: beams x max(1, triggers) of the frame.

@@ -14,6 +14,7 @@
 #include <map>
 #include <mutex>
 #include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
 #include <sstream>
 
 #include "acquisition/hall/hall_csv_writer.h"
@@ -76,6 +77,32 @@ TEST(QualityGate, AcceptsRenderedFramesAndSaysWhyItRejects) {
   EXPECT_FALSE(too_many.accepted);
   EXPECT_NE(too_many.reason.find("found " + std::to_string(n)), std::string::npos)
       << too_many.reason;
+
+  // A blob away from the sliding board (board residue, a reflection) is not counted; a beam that
+  // misses the plate leaves the count short, and the reason says where the stray dot is.
+  cv::Mat stray = s1.clone();
+  {
+    cv::Mat spot(stray.size(), CV_32F, cv::Scalar(0));
+    spot.at<float>(stray.rows / 8, stray.cols / 10) = 1.0f;
+    cv::GaussianBlur(spot, spot, cv::Size(0, 0), 1.6);
+    double peak = 0;
+    cv::minMaxLoc(spot, nullptr, &peak);
+    cv::Mat add;
+    spot.convertTo(add, stray.type(), 200.0 / peak);
+    stray += add;
+  }
+  gate.max_extra_dots = 0;
+  const GateResult with_stray = CheckFrame(stray, 1, n, plan.world_board, plan.sliding_board, gate);
+  EXPECT_TRUE(with_stray.accepted) << with_stray.reason;
+  EXPECT_EQ(with_stray.dots_found, n);
+  EXPECT_EQ(with_stray.dots.size(), static_cast<size_t>(n + 1));
+  const GateResult missed =
+      CheckFrame(stray, 1, n + 1, plan.world_board, plan.sliding_board, gate);
+  EXPECT_FALSE(missed.accepted);
+  EXPECT_NE(missed.reason.find("on the sliding board's visible area, found " + std::to_string(n) +
+                               " (1 more outside it, the first at ("),
+            std::string::npos)
+      << missed.reason;
 
   cv::Mat saturated = s1.clone();
   saturated(cv::Rect(0, 0, saturated.cols / 2, saturated.rows / 4)).setTo(255);

@@ -17,9 +17,10 @@ namespace {
 
 namespace fs = std::filesystem;
 
-// Smaller than the orchestrator tests' TinySim: only acquired here, never solved. The camera at
-// half resolution makes the quality gate reject the step-1 frames (board or dots not found), so
-// the replay must also reproduce rejected frames (kept as rejected/step1_*.png).
+// Smaller than the orchestrator tests' TinySim: only acquired here, never solved. The beams
+// spread so wide that at the far pose the outer ones miss the sliding plate: the quality gate
+// rejects those step 1 frames, so the replay must also reproduce rejected frames (kept as
+// rejected/step1_*.png).
 sim::SimOptions TinySim() {
   sim::SimOptions o;
   o.seed = 3;
@@ -29,6 +30,9 @@ sim::SimOptions TinySim() {
   o.camera.cx = 611.5;
   o.camera.cy = 511.5;
   o.step1.poses = 2;
+  o.sliding_board.cols = 5;
+  o.sliding_board.rows = 4;
+  o.step1.farthest_mm = 130;
   o.step2.neutral_frames = 1;
   o.step2.fast_only_frames = 1;
   o.triggers.max_triggers = 6;
