@@ -45,6 +45,14 @@ step2:
   fast_only_frames: 2
 triggers:
   max_triggers: 30
+  min_separation_px: 13
+camera:  # half resolution, same field of view: a quarter of the pixels
+  width: 1224
+  height: 1024
+  fx: 1000
+  fy: 1000
+  cx: 611.5
+  cy: 511.5
 hall:
   background_duration_s: 2
   actual_duration_s: 2

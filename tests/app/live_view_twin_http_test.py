@@ -106,6 +106,10 @@ def main():
     # plate poses without background or identification frames (it still solves), one exposure
     # per step-1 frame, fewer triggers and step-2 frames.
     for a, b in [("device: /dev/ttyACM0", "device: " + os.path.join(tmp, "tty")),
+                 # the camera at half resolution, same field of view: a quarter of the pixels
+                 ("width: 2448", "width: 1224"), ("height: 2048", "height: 1024"),
+                 ("fx: 2000", "fx: 1000"), ("fy: 2000", "fy: 1000"),
+                 ("cx: 1223.5", "cx: 611.5"), ("cy: 1023.5", "cy: 511.5"),
                  ("hall_background_s: 12", "hall_background_s: 2"),
                  ("hall_actual_min_s: 15", "hall_actual_min_s: 1"),
                  ("  exposures: 3 ", "  exposures: 1 "),

@@ -41,6 +41,10 @@ def make_rig(source, tmp):
     # Short Hall recordings, 4 poses, each step-1 frame taken twice (repeated exposures), few
     # triggers and step-2 frames; the rig file keeps the lab's hall_mcu.device.
     for a, b in [("stall_timeout_ms: 500", "stall_timeout_ms: 2000"),  # a loaded machine
+                 # the camera at half resolution, same field of view: a quarter of the pixels
+                 ("width: 2448", "width: 1224"), ("height: 2048", "height: 1024"),
+                 ("fx: 2000", "fx: 1000"), ("fy: 2000", "fy: 1000"),
+                 ("cx: 1223.5", "cx: 611.5"), ("cy: 1023.5", "cy: 511.5"),
                  ("hall_background_s: 12", "hall_background_s: 1"),
                  ("hall_actual_min_s: 15", "hall_actual_min_s: 1"),
                  ("  poses: 7", "  poses: 4"),
