@@ -142,8 +142,7 @@ TEST(CheckerboardTest, AFrameWithoutContrastStopsAtTheContrastCheck) {
 
   CheckerboardOptions bad;
   bad.min_contrast_levels = -1;
-  EXPECT_NE(bad.Validate().find("min_contrast_levels = -1 must be in [0, 128]"),
-            std::string::npos);
+  EXPECT_NE(bad.Validate().find("min_contrast_levels = -1 must be in [0, 128]"), std::string::npos);
 }
 
 }  // namespace

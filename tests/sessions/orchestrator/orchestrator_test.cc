@@ -96,8 +96,7 @@ TEST(QualityGate, AcceptsRenderedFramesAndSaysWhyItRejects) {
   EXPECT_TRUE(with_stray.accepted) << with_stray.reason;
   EXPECT_EQ(with_stray.dots_found, n);
   EXPECT_EQ(with_stray.dots.size(), static_cast<size_t>(n + 1));
-  const GateResult missed =
-      CheckFrame(stray, 1, n + 1, plan.world_board, plan.sliding_board, gate);
+  const GateResult missed = CheckFrame(stray, 1, n + 1, plan.world_board, plan.sliding_board, gate);
   EXPECT_FALSE(missed.accepted);
   EXPECT_NE(missed.reason.find("on the sliding board's visible area, found " + std::to_string(n) +
                                " (1 more outside it, the first at ("),
