@@ -303,6 +303,20 @@ def shown_error(text, rc):
     return ""
 
 
+def finish_error(text):
+    """The error of a finish step (solve, Hall calibration, Hall prediction): the first
+    `[error]` line after a `$ msmcal ...` line, with the command it came from."""
+    command = ""
+    for l in text.splitlines():
+        if l.startswith("$ msmcal "):
+            words = l.split(" ")[2:4]  # "solve DIR", "hall calibrate", "hall predict"
+            command = " ".join(words if words[:1] == ["hall"] else words[:1])
+        elif re.search(r"\[error\]|FAILED", l):
+            shown = re.sub(r"^\[[^\]]*\] (\[[a-z]+\] )?", "", l).strip()
+            return "%s: %s" % (command, shown) if command else shown
+    return ""
+
+
 def run_row(fault, msmcal, work):
     subprocess.run(["ip", "link", "set", "lo", "up"], check=True)
     import ctypes
@@ -467,7 +481,9 @@ def run_row(fault, msmcal, work):
         row["resume"] = "FAILED: exit %d%s%s" % (rrc, "" if complete else ", incomplete",
                                                  ", %d images changed" % len(changed)
                                                  if changed else "")
-        row["resume"] += " (%s)" % shown_error(r.text(), rrc)
+        # The acquisition's error, else the finish step's (solve, Hall calibration) that failed.
+        why = shown_error(r.text(), rrc) or finish_error(r.text())
+        row["resume"] += " (%s)" % why
     check(rrc == 0, "resume exit %d" % rrc)
     check(complete, "journal not complete after the resume")
     check(not changed, "images recorded before the resume changed: %s" % changed[:3])

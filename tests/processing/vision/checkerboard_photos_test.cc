@@ -137,13 +137,28 @@ TEST(CheckerboardPhotos, CornerModelFitKeepsRealCornersConsistent) {
   }
 }
 
-// What each detector of the chain tried is reported, and a blank image fails every one.
+// What each detector of the chain tried is reported. A blank image stops at the contrast check
+// (one attempt that says why); an image with contrast but no board fails every detector.
 TEST(CheckerboardPhotos, AttemptsAreReported) {
   std::vector<BoardAttempt> attempts;
   EXPECT_FALSE(DetectCheckerboard(cv::Mat1b(300, 400, uchar{128}), BoardSize{9, 6}, {}, cv::Mat(),
                                   &attempts));
+  ASSERT_EQ(attempts.size(), 1u);
+  EXPECT_EQ(attempts[0].method, BoardMethod::kContrastCheck);
+  EXPECT_FALSE(attempts[0].found);
+  EXPECT_NE(attempts[0].note.find("no contrast"), std::string::npos) << attempts[0].note;
+
+  // A smooth left-to-right ramp over 0..255: plenty of contrast, no corner anywhere.
+  cv::Mat1b ramp(300, 400);
+  for (int y = 0; y < ramp.rows; ++y)
+    for (int x = 0; x < ramp.cols; ++x) ramp(y, x) = static_cast<uchar>(x * 255 / (ramp.cols - 1));
+  attempts.clear();
+  EXPECT_FALSE(DetectCheckerboard(ramp, BoardSize{9, 6}, {}, cv::Mat(), &attempts));
   ASSERT_GE(attempts.size(), 2u);
-  for (const auto& a : attempts) EXPECT_FALSE(a.found);
+  for (const auto& a : attempts) {
+    EXPECT_FALSE(a.found);
+    EXPECT_NE(a.method, BoardMethod::kContrastCheck);
+  }
   EXPECT_EQ(attempts.back().method, BoardMethod::kSbUpscaled);
 }
 
