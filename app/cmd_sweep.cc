@@ -372,6 +372,7 @@ void RunRigSweep(const SweepArgs& args, const fs::path& plan_file, const fs::pat
     lab.camera_frame_rate_hz = rig.camera.frame_rate_hz;
     lab.camera_exposure_us = rig.camera.exposure_us;
     lab.background_seconds = rig.step2.hall_background_s;
+    lab.actual_min_seconds = rig.step2.hall_actual_min_s;
     lab.poses = plan::PoseGeometryOf(rig);
     lab.operator_spec = hook.empty() ? "console" : args.operator_spec;
     lab.hook_timeout_ms = args.hook_timeout_s * 1000;

@@ -238,6 +238,7 @@ orchestrator::SessionResult RunLabAcquisition(const fs::path& out,
   oo.camera_frame_rate_hz = options.camera_frame_rate_hz;
   oo.camera_exposure_us = options.camera_exposure_us;
   oo.background_seconds = options.background_seconds;
+  oo.actual_min_seconds = options.actual_min_seconds;
   oo.run_kind = "lab";
   const std::string hook = ParseOperatorSpec(options.operator_spec);
   YAML::Emitter config;
@@ -249,7 +250,9 @@ orchestrator::SessionResult RunLabAcquisition(const fs::path& out,
     config << YAML::Key << "camera_exposure_us" << YAML::Value
            << common::ShortestDouble(*options.camera_exposure_us);
   config << YAML::Key << "background_seconds" << YAML::Value
-         << common::ShortestDouble(options.background_seconds) << YAML::Key << "operator"
+         << common::ShortestDouble(options.background_seconds) << YAML::Key
+         << "actual_min_seconds" << YAML::Value
+         << common::ShortestDouble(options.actual_min_seconds) << YAML::Key << "operator"
          << YAML::Value << options.operator_spec << YAML::Key << "poses" << YAML::Value
          << YAML::Flow << YAML::BeginSeq;
   for (const auto& p : options.poses)
@@ -384,6 +387,7 @@ LabAcquisitionOptions LabOptionsFromJournal(const fs::path& dir, const std::stri
     o.rig_yaml = n["rig_yaml"].as<std::string>();
     if (n["camera_exposure_us"]) o.camera_exposure_us = n["camera_exposure_us"].as<double>();
     if (n["background_seconds"]) o.background_seconds = n["background_seconds"].as<double>();
+    if (n["actual_min_seconds"]) o.actual_min_seconds = n["actual_min_seconds"].as<double>();
     if (n["operator"]) o.operator_spec = n["operator"].as<std::string>();
     if (n["reference"]) o.reference = n["reference"].as<std::string>();
     if (n["poses"])

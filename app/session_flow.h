@@ -87,6 +87,7 @@ struct LabAcquisitionOptions {
   // From the rig file (sessions/rig) when the session has one:
   std::optional<double> camera_exposure_us;
   double background_seconds = 12.0;        // step2.hall_background_s
+  double actual_min_seconds = 0;           // step2.hall_actual_min_s
   std::vector<setup::PoseGeometry> poses;  // sliding_plate: the set-ups' pose hints
   // Who changes the rig: "console" (the guided terminal) or "hook:CMD" (CMD through /bin/sh -c
   // with each set-up's JSON on stdin, docs/lab-path.md). ParseOperatorSpec checks it.

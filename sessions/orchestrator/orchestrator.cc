@@ -52,6 +52,9 @@ std::string OrchestratorOptions::Validate() const {
   if (!(background_seconds >= 0))
     return "OrchestratorOptions.background_seconds = " + std::to_string(background_seconds) +
            ": must be >= 0";
+  if (!(actual_min_seconds >= 0 && actual_min_seconds <= 86400))
+    return "OrchestratorOptions.actual_min_seconds = " + std::to_string(actual_min_seconds) +
+           ": must be in [0, 86400]";
   if (std::string e = gate.Validate(); !e.empty()) return "OrchestratorOptions.gate: " + e;
   if (std::string e = generators.Validate(); !e.empty())
     return "OrchestratorOptions.generators: " + e;
@@ -402,11 +405,14 @@ class HallStatusReporter {
 // Records one Hall recording into hall/<name>.csv through the driver; returns the recorder's
 // result. Throws when the recording ended abnormally, the sink (CSV writer) failing included.
 // With `during`, the recording runs while it does and is stopped when it returns; `during` calls
-// its argument between its own steps, which throws as soon as the sink has failed. Without, it
-// runs for max_seconds of MCU time (or to the end of the MCU's data).
+// its argument between its own steps, which throws as soon as the sink has failed; when it
+// returns before the recording covers min_seconds of MCU time, the recording goes on until it
+// does (or the MCU's data end, or the recording ends otherwise). Without `during`, it runs for
+// max_seconds of MCU time (or to the end of the MCU's data).
 acquisition::HallRecorderResult RecordHall(
     hall_mcu::HallSensor& sensor, const fs::path& csv, const OrchestratorOptions& options,
-    double max_seconds, const std::function<void(const std::function<void()>&)>& during) {
+    double max_seconds, const std::function<void(const std::function<void()>&)>& during,
+    double min_seconds = 0, SessionLog* log = nullptr) {
   // Shared with the sink: a hung sink thread is abandoned by the recorder with its captures.
   auto writer = std::make_shared<acquisition::HallCsvWriter>(csv);
   acquisition::HallRecorderOptions ro;
@@ -427,10 +433,26 @@ acquisition::HallRecorderResult RecordHall(
     HallStatusReporter status(options.on_rig_status, csv.stem().string(), recorder);
     try {
       if (during) {
-        during([&] {
+        const auto check_sink = [&] {
           if (std::string e = recorder.SinkError(); !e.empty())
             throw std::runtime_error(who + " failed: " + e);
-        });
+        };
+        during(check_sink);
+        if (min_seconds > 0 && recorder.Counts().seconds_recorded < min_seconds) {
+          if (log) {
+            char line[200];
+            std::snprintf(line, sizeof(line),
+                          "Hall: %s recording held until it covers %g s of MCU time (%.1f s so "
+                          "far)",
+                          csv.stem().c_str(), min_seconds, recorder.Counts().seconds_recorded);
+            log->Line(line);
+          }
+          // The reader ends by itself at the end of the MCU's data, a stall or a closed device.
+          while (!recorder.WaitForReader(std::chrono::milliseconds(50))) {
+            check_sink();
+            if (recorder.Counts().seconds_recorded >= min_seconds) break;
+          }
+        }
         recorder.Stop();
       }
     } catch (...) {
@@ -995,7 +1017,8 @@ class SessionController {
                                   check_hall();
                                   Step2Frame(i);
                                 }
-                              });
+                              },
+                              options_.actual_min_seconds, log_.get());
     result_.actual_readings = r.counts.readings_delivered;
     result_.actual_edges = r.counts.edges_delivered;
     HallDone("actual", r);

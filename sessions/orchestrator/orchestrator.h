@@ -135,8 +135,12 @@ struct OrchestratorOptions {
   uint16_t mcu_rate_hz = 1000;
   // Background recording length (MCU time); 0: until the MCU reports the end of its data (mock
   // and replay sources only; a real MCU streams forever). The actual recording runs for the whole
-  // of step 2 and is stopped when step 2 ends.
+  // of step 2 and is stopped when step 2 ends, but not before it covers actual_min_seconds of MCU
+  // time (or the MCU reports the end of its data): a step 2 that is quick, or that a resume finds
+  // already recorded (its actual recording cut short by a fault), still gets a recording that
+  // long (rig file step2.hall_actual_min_s). 0: no minimum.
   double background_seconds = 12.0;
+  double actual_min_seconds = 0;
   // Every Hall batch passes through it on the recorder's sink thread before the CSV writer
   // (empty: none): a tee, or a fault injected by a test (one that throws stands for a failing
   // sink, disk full on hall/). Observers that throw end the session in the safe state.

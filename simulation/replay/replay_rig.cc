@@ -133,6 +133,7 @@ orchestrator::OrchestratorOptions ReplayRig::MakeOrchestratorOptions(
   o.mcu = setup_.mcu;
   o.mcu.device.clear();      // RunSession asks the world for the background MCU (a replaying mock)
   o.background_seconds = 0;  // the replayed background recording ends with its data
+  o.actual_min_seconds = 86400;  // the replayed actual recording too, however quick step 2 is
   o.mcu_rate_hz = setup_.mcu_rate_hz;
   o.run_kind = "replay";
   o.run_config_yaml = ReplayRunConfigYaml(options_.source, source_run_);

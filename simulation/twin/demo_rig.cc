@@ -133,6 +133,9 @@ orchestrator::OrchestratorOptions DemoRig::MakeOrchestratorOptions(
                                       options_.background_mcu_faults);
   o.mcu.device = background_device_;
   o.background_seconds = 0;  // the mock MCU ends with the simulator's recording
+  // The actual recording as long as the simulator's, also when step 2 is quick (a resume that
+  // finds every step 2 frame recorded); the mock MCU ends it there.
+  o.actual_min_seconds = options_.sim.hall.actual_duration_s;
   o.mcu_rate_hz = static_cast<uint16_t>(options_.sim.hall.sample_rate_hz);
   return o;
 }

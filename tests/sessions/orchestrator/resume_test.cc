@@ -183,6 +183,41 @@ TEST(ResumeDeathTest, KilledInStep2ContinuesKeepingFramesAndThePartialHallRecord
   }
 }
 
+// Killed right after the last step 2 frame: the resume has no frame left to take, and its actual
+// Hall recording (taken again: the one cut short is kept aside) still covers the whole of the
+// simulator's recording (OrchestratorOptions::actual_min_seconds), not the instant a step 2
+// with nothing to do lasts (it was ~0.1 s: too few readings and clock edges for the Hall
+// calibration, the fault campaign's mcu-stall row failed on it under load).
+TEST(ResumeDeathTest, KilledAfterTheLastStep2FrameRecordsTheWholeActualHallRecordingAgain) {
+  const fs::path dir = FreshDir("step2_last");
+  const dataset::Recording plan = [] {
+    DemoRigOptions ro;
+    ro.sim = TinySim();
+    return DemoRig(ro).Plan();
+  }();
+  const std::string n = std::to_string(plan.step2.size());
+  RunAndKillAt(dir, "step 2: frame " + n + "/" + n + " ");
+  const SessionJournalState before = ReadSessionJournal(dir);
+  ASSERT_TRUE(before.exists);
+  ASSERT_EQ(before.frames_recorded, plan.step1.size() + plan.step2.size());
+
+  const SessionResult r = Resume(dir);
+  for (const auto& f : r.frames) EXPECT_TRUE(f.from_journal) << f.file;
+  ASSERT_EQ(r.partial_hall_files.size(), 1u);
+  const dataset::Recording rec = interchange::ReadRecording(dir);
+  ASSERT_TRUE(rec.hall_actual);
+  const auto& readings = rec.hall_actual->readings;
+  ASSERT_GE(readings.size(), 2u);
+  const double duration_s = TinySim().hall.actual_duration_s;
+  const double rate_hz = TinySim().hall.sample_rate_hz;
+  const double span_s = 1e-6 * (readings.back().mcu_time_us - readings.front().mcu_time_us);
+  EXPECT_GE(span_s, duration_s - 2.0 / rate_hz) << readings.size() << " readings";
+  EXPECT_GE(readings.size(), static_cast<size_t>(duration_s * rate_hz) - 2);
+  EXPECT_NE(ReadText(dir / "session_log.txt").find("actual recording held until it covers"),
+            std::string::npos);
+  EXPECT_TRUE(ReadSessionJournal(dir).complete);
+}
+
 TEST(ResumeDeathTest, KilledInStep1ContinuesFromTheNextFrame) {
   const fs::path dir = FreshDir("step1");
   RunAndKillAt(dir, "step 1: frame 2/");
