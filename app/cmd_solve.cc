@@ -12,6 +12,7 @@
 #include <memory>
 #include <mutex>
 #include <opencv2/imgcodecs.hpp>
+#include <optional>
 #include <sstream>
 
 #include "app/command_registry.h"
@@ -55,6 +56,7 @@ void RunExplain(const SolveArgs& args, const solver::PipelineOptions& options) {
   // The frame's static scene (the images its background is measured in): step 1 the same
   // sliding pose, step 2 every frame.
   std::vector<std::string> scene;
+  std::string view_first;  // the first frame of its view (board hints)
   for (const auto& f : rec.step1)
     if (f.file == args.explain) {
       for (const auto& g : rec.step1)
@@ -62,6 +64,7 @@ void RunExplain(const SolveArgs& args, const solver::PipelineOptions& options) {
       expected = static_cast<int>(f.beams.size());
       asks = {world, sliding};
       names = {"world", "sliding"};
+      view_first = rec.step1.front().file;
       what = "step 1, sliding pose " + std::to_string(f.pose) + ", " +
              std::to_string(f.beams.size()) + " beam(s) unblocked: expects " +
              std::to_string(f.beams.size()) + " dot(s) on the sliding plate";
@@ -72,6 +75,7 @@ void RunExplain(const SolveArgs& args, const solver::PipelineOptions& options) {
         if (g.file != f.file) scene.push_back(g.file);
       asks = {world};
       names = {"world"};
+      view_first = rec.step2.front().file;
       const size_t triggers = f.kind == dataset::Step2Kind::kNeutral ? 1 : f.triggers.size();
       expected = static_cast<int>(triggers * f.beams.size());
       what = std::string("step 2, ") + dataset::ToString(f.kind) + ", " + std::to_string(triggers) +
@@ -100,8 +104,28 @@ void RunExplain(const SolveArgs& args, const solver::PipelineOptions& options) {
           parity == 0 ? "even" : "odd",
           options.dots.native_green_only ? "" : " only with dots.native_green_only (now off)");
   }
+  // As the solve does: boards searched first where the view's first frame showed them.
+  std::optional<solver::BoardHints> hints;
+  if (options.hint_boards_from_first_frame && view_first != args.explain) {
+    const cv::Mat first = cv::imread((dir / view_first).string(), cv::IMREAD_UNCHANGED);
+    if (!first.empty() && first.size() == img.size()) {
+      hints = solver::HintsFrom(solver::MeasureImage(first, asks, options.dots, options.boards),
+                                options.boards);
+      std::printf("board hints from %s (the view's first frame, boards.hint_from_first_frame):\n",
+                  view_first.c_str());
+      for (size_t b = 0; b < asks.size(); ++b) {
+        if (const auto& h = (*hints)[b])
+          std::printf("  %s: %s at scale %.3f in %dx%d+%d+%d\n", names[b].c_str(),
+                      vision::ToString(h->method), h->scale, h->region.width, h->region.height,
+                      h->region.x, h->region.y);
+        else
+          std::printf("  %s: not found there (the whole chain)\n", names[b].c_str());
+      }
+    }
+  }
   const auto t0 = std::chrono::steady_clock::now();
-  const solver::ImageMeasurement m = solver::MeasureFrame(img, asks, expected, options);
+  const solver::ImageMeasurement m =
+      solver::MeasureFrame(img, asks, expected, options, hints ? &*hints : nullptr);
   const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   std::printf("measured in %.2f s\n", secs);
   for (size_t b = 0; b < asks.size(); ++b) {
@@ -114,7 +138,12 @@ void RunExplain(const SolveArgs& args, const solver::PipelineOptions& options) {
                                   .c_str()
                             : "NOT FOUND");
     for (const auto& a : m.board_attempts[b])
-      std::printf("  %-12s scale %.3f: %s%s%s\n", vision::ToString(a.method), a.scale,
+      std::printf("  %-12s scale %.3f%s: %s%s%s\n", vision::ToString(a.method), a.scale,
+                  a.region.empty() ? ""
+                                   : (" in " + std::to_string(a.region.width) + "x" +
+                                      std::to_string(a.region.height) + "+" +
+                                      std::to_string(a.region.x) + "+" + std::to_string(a.region.y))
+                                         .c_str(),
                   !a.found     ? "no grid"
                   : a.accepted ? "accepted"
                                : "refused",

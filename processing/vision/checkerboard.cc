@@ -53,6 +53,8 @@ std::string CheckerboardOptions::Validate() const {
   else if (!(max_grid_irregularity_squares > 0 && max_grid_irregularity_squares <= 1))
     s << "max_grid_irregularity_squares = " << max_grid_irregularity_squares
       << " must be in (0, 1]";
+  else if (!(hint_margin_squares >= 1 && hint_margin_squares <= 20))
+    s << "hint_margin_squares = " << hint_margin_squares << " must be in [1, 20]";
   return s.str();
 }
 
@@ -178,8 +180,10 @@ double GridIrregularity(const std::vector<cv::Point2f>& g, BoardSize size) {
 
 // Runs one detector of the chain on `gray` scaled by `scale` (1: as is); corners in full
 // resolution pixels (pixel-centre convention: p_full = (p_scaled + 0.5) / scale - 0.5).
-bool RunDetector(const cv::Mat& gray, BoardSize size, BoardMethod method, double scale,
-                 std::vector<cv::Point2f>* found) {
+// `region` (not empty): the detector sees only that part of `gray`.
+bool RunDetector(const cv::Mat& whole, BoardSize size, BoardMethod method, double scale,
+                 const cv::Rect& region, std::vector<cv::Point2f>* found) {
+  const cv::Mat gray = region.empty() ? whole : whole(region).clone();
   cv::Mat img;
   if (scale < 1.0)
     cv::resize(gray, img, cv::Size(), scale, scale, cv::INTER_AREA);
@@ -217,6 +221,10 @@ bool RunDetector(const cv::Mat& gray, BoardSize size, BoardMethod method, double
       p.x = static_cast<float>((p.x + 0.5) / scale - 0.5);
       p.y = static_cast<float>((p.y + 0.5) / scale - 0.5);
     }
+  for (auto& p : *found) {
+    p.x += static_cast<float>(region.x);
+    p.y += static_cast<float>(region.y);
+  }
   return true;
 }
 
@@ -268,7 +276,8 @@ const char* ToString(BoardMethod method) {
 std::optional<CheckerboardDetection> DetectCheckerboard(const cv::Mat& image, BoardSize size,
                                                         const CheckerboardOptions& options,
                                                         const cv::Mat& mask,
-                                                        std::vector<BoardAttempt>* attempts) {
+                                                        std::vector<BoardAttempt>* attempts,
+                                                        const BoardHint* hint) {
   if (const std::string err = options.Validate(); !err.empty())
     throw std::invalid_argument("CheckerboardOptions: " + err);
   if (size.cols < 2 || size.rows < 2)
@@ -282,7 +291,7 @@ std::optional<CheckerboardDetection> DetectCheckerboard(const cv::Mat& image, Bo
         why << "no contrast: grey levels span " << span
             << " (0.1-99.9 percentiles, 3x3 median, 4x4 averaged) < boards.min_contrast_levels "
             << options.min_contrast_levels << ": a black, blank or saturated frame";
-        attempts->push_back({BoardMethod::kContrastCheck, 0.25, false, false, why.str()});
+        attempts->push_back({BoardMethod::kContrastCheck, 0.25, false, false, why.str(), {}});
       }
       return std::nullopt;
     }
@@ -290,22 +299,37 @@ std::optional<CheckerboardDetection> DetectCheckerboard(const cv::Mat& image, Bo
   // The chain: SB on a ladder of coarse scales (it succeeds or fails somewhat erratically with
   // the square size in pixels), SB at full resolution, SB upscaled (small squares), classic.
   const int side = std::max(gray.cols, gray.rows);
-  std::vector<std::pair<BoardMethod, double>> chain;
+  struct Try {
+    BoardMethod method;
+    double scale;
+    cv::Rect region;  // empty: the whole image
+  };
+  std::vector<Try> chain;
+  // A hint first: its detector on its region only. The region must hold the board's corners
+  // with room around them (at least 4 x 4 px per inner corner).
+  if (hint) {
+    const cv::Rect region = hint->region & cv::Rect(0, 0, gray.cols, gray.rows);
+    if (region.width >= 4 * size.cols && region.height >= 4 * size.rows &&
+        region.area() < gray.cols * gray.rows)
+      chain.push_back({hint->method, hint->scale, region});
+  }
+  const size_t hinted = chain.size();
   for (double f : {1.0, 0.7, 1.4}) {
     const double s = f * options.coarse_max_side_px / side;
-    if (s < 1.0) chain.emplace_back(BoardMethod::kSbCoarse, s);
+    if (s < 1.0) chain.push_back({BoardMethod::kSbCoarse, s, {}});
   }
-  if (options.try_sb_full || chain.empty()) chain.emplace_back(BoardMethod::kSbFull, 1.0);
+  if (options.try_sb_full || chain.size() == hinted)
+    chain.push_back({BoardMethod::kSbFull, 1.0, {}});
   // The classic detector's quad grouping grows badly with the board: on a 23 x 28 board it took
   // minutes on some simulated frames where it was asked; boards above classic_max_corners skip it.
   if (options.try_classic && size.cols * size.rows <= options.classic_max_corners)
-    chain.emplace_back(BoardMethod::kClassic, 1.0);
+    chain.push_back({BoardMethod::kClassic, 1.0, {}});
   if (options.try_sb_upscaled && 2 * side <= options.upscale_max_side_px)
-    chain.emplace_back(BoardMethod::kSbUpscaled, 2.0);
-  for (const auto& [method, scale] : chain) {
-    BoardAttempt attempt{method, scale, false, false, ""};
+    chain.push_back({BoardMethod::kSbUpscaled, 2.0, {}});
+  for (const auto& [method, scale, region] : chain) {
+    BoardAttempt attempt{method, scale, false, false, "", region};
     std::vector<cv::Point2f> found;
-    attempt.found = RunDetector(gray, size, method, scale, &found);
+    attempt.found = RunDetector(gray, size, method, scale, region, &found);
     if (!attempt.found) {
       if (attempts) attempts->push_back(attempt);
       continue;
@@ -380,6 +404,8 @@ std::optional<CheckerboardDetection> DetectCheckerboard(const cv::Mat& image, Bo
     det.refine_half_window_px = win;
     det.corners_fitted = corners_fitted;
     det.method = method;
+    det.scale = scale;
+    det.hinted = !region.empty();
     det.square_px = spacing;
     return det;
   }
@@ -427,6 +453,26 @@ std::vector<Eigen::Vector2d> SquaresOutline(const CheckerboardDetection& board, 
   return out;
 }
 
+BoardHint HintFrom(const CheckerboardDetection& board, cv::Size image_size,
+                   const CheckerboardOptions& options) {
+  BoardHint hint;
+  hint.method = board.method;
+  hint.scale = board.scale;
+  double x0 = 1e18, y0 = 1e18, x1 = -1e18, y1 = -1e18;
+  for (const auto& p : board.corners_px) {
+    x0 = std::min(x0, p.x()), y0 = std::min(y0, p.y());
+    x1 = std::max(x1, p.x()), y1 = std::max(y1, p.y());
+  }
+  if (board.corners_px.empty()) return hint;
+  const double grow = options.hint_margin_squares * board.square_px;
+  const cv::Rect r(
+      cv::Point(static_cast<int>(std::floor(x0 - grow)), static_cast<int>(std::floor(y0 - grow))),
+      cv::Point(static_cast<int>(std::ceil(x1 + grow)) + 1,
+                static_cast<int>(std::ceil(y1 + grow)) + 1));
+  hint.region = r & cv::Rect(cv::Point(0, 0), image_size);
+  return hint;
+}
+
 bool InsideOutline(const std::vector<Eigen::Vector2d>& outline, const Eigen::Vector2d& px) {
   if (outline.size() < 3) return false;
   std::vector<cv::Point2f> poly;
@@ -438,7 +484,10 @@ bool InsideOutline(const std::vector<Eigen::Vector2d>& outline, const Eigen::Vec
 
 std::vector<std::optional<CheckerboardDetection>> DetectCheckerboards(
     const cv::Mat& image, const std::vector<BoardSize>& sizes, const CheckerboardOptions& options,
-    std::vector<std::vector<BoardAttempt>>* attempts) {
+    std::vector<std::vector<BoardAttempt>>* attempts,
+    const std::vector<std::optional<BoardHint>>* hints) {
+  if (hints && hints->size() != sizes.size())
+    throw std::invalid_argument("DetectCheckerboards: one hint (or none) per board size");
   if (attempts) attempts->assign(sizes.size(), {});
   std::vector<size_t> order(sizes.size());
   std::iota(order.begin(), order.end(), 0);
@@ -448,8 +497,9 @@ std::vector<std::optional<CheckerboardDetection>> DetectCheckerboards(
   std::vector<std::optional<CheckerboardDetection>> out(sizes.size());
   cv::Mat mask(image.size(), CV_8U, cv::Scalar(255));
   for (size_t k : order) {
-    out[k] =
-        DetectCheckerboard(image, sizes[k], options, mask, attempts ? &(*attempts)[k] : nullptr);
+    const BoardHint* hint = hints && (*hints)[k] ? &*(*hints)[k] : nullptr;
+    out[k] = DetectCheckerboard(image, sizes[k], options, mask,
+                                attempts ? &(*attempts)[k] : nullptr, hint);
     if (!out[k]) continue;
     // Mask the board's hull, grown by one square on each side.
     const auto& c = out[k]->corners_px;

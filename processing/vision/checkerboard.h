@@ -71,7 +71,21 @@ struct CheckerboardOptions {
   // this between their 0.1 and 99.9 percentiles: a board is dark and light squares. A black
   // frame cost ~3 s per board in the SB searches and found nothing. 0: always search.
   double min_contrast_levels = 8;
+  // A BoardHint's region: the board it comes from grown by this many of its squares on every
+  // side (the outer squares and the quiet zone the detectors need, plus a small shift).
+  double hint_margin_squares = 3;
   std::string Validate() const;
+};
+
+// Where a board was found in another image of the same view (same camera, board not moved):
+// DetectCheckerboard first runs that detector at that scale on that region only, and runs the
+// whole chain when it fails there. In a session's frames the world board does not move, and the
+// detector that finds it in one frame usually finds it in the others; a 2x upscaled SB search
+// on the region costs a fraction of one on the whole image (docs/solver.md, "Checkerboards").
+struct BoardHint {
+  BoardMethod method = BoardMethod::kSbCoarse;
+  double scale = 1.0;
+  cv::Rect region;  // full-resolution pixels
 };
 
 // One detector's try on one board (for diagnostics: msmcal solve --explain).
@@ -81,6 +95,7 @@ struct BoardAttempt {
   bool found = false;     // the detector returned a grid
   bool accepted = false;  // and it passed the geometric check
   std::string note;       // why a found grid was refused
+  cv::Rect region;        // the hint's region it ran on (empty: the whole image)
 };
 
 struct CheckerboardDetection {
@@ -89,18 +104,26 @@ struct CheckerboardDetection {
   // spot (laser dot) reaching into it biases that corner (up to 1.6 px on the simulator).
   int refine_half_window_px = 0;
   BoardMethod method = BoardMethod::kSbCoarse;  // the detector that found the board
+  double scale = 1.0;                           // at this image scale
+  bool hinted = false;   // in a BoardHint's region (found where another image had it)
   double square_px = 0;  // median distance between neighbouring corners, pixels
   // Corners refined by the corner model (CheckerboardOptions::fit_corners); the others keep
   // cornerSubPix's point.
   int corners_fitted = 0;
 };
 
+// The hint a found board gives for other images of `image_size` (region clipped to the image).
+BoardHint HintFrom(const CheckerboardDetection& board, cv::Size image_size,
+                   const CheckerboardOptions& options);
+
 // Finds one board of exactly `size` in `image` (8/16-bit, 1 or 3 channels). `mask` (optional,
 // CV_8U, same size, nonzero = usable) hides regions such as an already found board. Empty when
-// not found. `attempts` (optional) receives every detector's try, in order.
+// not found. `attempts` (optional) receives every detector's try, in order. `hint` (optional):
+// tried first (BoardHint).
 std::optional<CheckerboardDetection> DetectCheckerboard(
     const cv::Mat& image, BoardSize size, const CheckerboardOptions& options = {},
-    const cv::Mat& mask = cv::Mat(), std::vector<BoardAttempt>* attempts = nullptr);
+    const cv::Mat& mask = cv::Mat(), std::vector<BoardAttempt>* attempts = nullptr,
+    const BoardHint* hint = nullptr);
 
 // Flags (1) the corners of `board` whose refinement window no bright spot reached. A spot is
 // given by its blob's bounding box (pixels above the dot threshold); its light reaches 3 px
@@ -111,11 +134,13 @@ std::vector<char> CornersClearOfSpots(const CheckerboardDetection& board,
 
 // Finds several boards of different sizes in one image: the one with more corners first, then the
 // others with the found boards masked out. Result i corresponds to sizes[i].
-// `attempts` (optional): per size, as DetectCheckerboard's.
+// `attempts` (optional): per size, as DetectCheckerboard's. `hints` (optional): per size, a
+// hint or nullopt.
 std::vector<std::optional<CheckerboardDetection>> DetectCheckerboards(
     const cv::Mat& image, const std::vector<BoardSize>& sizes,
     const CheckerboardOptions& options = {},
-    std::vector<std::vector<BoardAttempt>>* attempts = nullptr);
+    std::vector<std::vector<BoardAttempt>>* attempts = nullptr,
+    const std::vector<std::optional<BoardHint>>* hints = nullptr);
 
 // Reorders a grid of corners (row-major rows x cols, as OpenCV returns them) into the canonical
 // order using the handedness in the image and the colour of the outer squares in `gray` (8-bit).

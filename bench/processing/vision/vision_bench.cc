@@ -101,6 +101,65 @@ void BM_FindChessboardCornersSBFullResolution(benchmark::State& state) {
 }
 BENCHMARK(BM_FindChessboardCornersSBFullResolution)->Unit(benchmark::kMillisecond)->Iterations(1);
 
+// ---- A board that only a later detector of the chain finds, with and without a hint ----
+// A 23 x 28 board of ~14 x 10 px squares in a 1600 x 1200 frame, slanted, defocused and noisy (a
+// world board seen at a slant from afar): the whole chain (counter `method`: the BoardMethod that
+// found it), and with the hint another frame of the view gives (vision::BoardHint: that detector on
+// the board's region only, as the solver searches every frame of a view after its first).
+cv::Mat SmallSquaresFrame() {
+  // The board drawn with 40 px squares, then seen at a slant: 0.35 across, 0.25 along (and a
+  // little perspective), rotated by 20 deg: squares of ~14 x 10 px, which the coarse search
+  // misses and SB at full resolution finds (at 0.32 x 0.23 no detector of the chain finds it).
+  const int sq = 40, cols = 24, rows = 29;
+  cv::Mat1b flat((rows + 4) * sq, (cols + 4) * sq, uchar{200});
+  for (int j = 0; j < rows; ++j)
+    for (int i = 0; i < cols; ++i)
+      if ((i + j) % 2 == 0)
+        cv::rectangle(flat, cv::Rect((i + 2) * sq, (j + 2) * sq, sq, sq), cv::Scalar(30),
+                      cv::FILLED);
+  const double a = 20 * msmcal::common::kRadPerDeg;
+  const cv::Matx33d rot(std::cos(a), -std::sin(a), 700, std::sin(a), std::cos(a), 420, 0, 0, 1);
+  const cv::Matx33d slant(0.35, 0, 0, 0, 0.25, 0, 1e-5, 0, 1);
+  cv::Mat1b img(1200, 1600, uchar{40});
+  cv::warpPerspective(flat, img, rot * slant, img.size(), cv::INTER_AREA, cv::BORDER_TRANSPARENT);
+  cv::Mat blurred, noise(img.size(), CV_16S), out;
+  cv::GaussianBlur(img, blurred, cv::Size(0, 0), 0.8);
+  cv::RNG rng(3);
+  rng.fill(noise, cv::RNG::NORMAL, 0, 3);
+  cv::add(blurred, noise, out, cv::noArray(), CV_8U);
+  return out;
+}
+
+void BM_SmallSquares_WholeChain(benchmark::State& state) {
+  const cv::Mat img = SmallSquaresFrame();
+  int method = -1;
+  for (auto _ : state) {
+    const auto det = msmcal::vision::DetectCheckerboard(img, {23, 28});
+    method = det ? static_cast<int>(det->method) : -1;
+  }
+  state.counters["method"] = method;
+}
+BENCHMARK(BM_SmallSquares_WholeChain)->Unit(benchmark::kMillisecond)->Iterations(2);
+
+void BM_SmallSquares_Hinted(benchmark::State& state) {
+  const cv::Mat img = SmallSquaresFrame();
+  const auto first = msmcal::vision::DetectCheckerboard(img, {23, 28});
+  if (!first) {
+    state.SkipWithError("the whole chain did not find the board");
+    return;
+  }
+  const msmcal::vision::BoardHint hint = msmcal::vision::HintFrom(*first, img.size(), {});
+  int hinted = 0;
+  for (auto _ : state) {
+    const auto det =
+        msmcal::vision::DetectCheckerboard(img, {23, 28}, {}, cv::Mat(), nullptr, &hint);
+    hinted = det && det->hinted;
+  }
+  state.counters["method"] = static_cast<int>(first->method);
+  state.counters["hinted"] = hinted;
+}
+BENCHMARK(BM_SmallSquares_Hinted)->Unit(benchmark::kMillisecond)->Iterations(2);
+
 // ---- How often each detector finds a board, and at what cost, over varied boards ----
 // 60 boards (13 x 8 inner corners, canonical colouring) warped into 1600 x 1200 frames: squares
 // 8-60 px, tilt up to 60 deg about a random axis, defocus 0-2.5 px, vignetting up to 50 %,

@@ -101,16 +101,34 @@ std::vector<vision::Dot> DotsOnHostPlane(const std::vector<vision::Dot>& dots,
 // `expected[i]`: the dots image i should show (0: not checked). An image whose first pass finds
 // fewer on its board's plane is measured again with settings from its own data
 // (AdaptiveDotOptions); the second pass is kept if it finds more.
+// `view[i]`: the camera view of image i (PipelineOptions::hint_boards_from_first_frame: the
+// first image of each view is measured first, its boards hint the others').
 std::vector<ImageMeasurement> MeasureImages(
     const std::vector<std::string>& files,
     const std::vector<std::vector<vision::BoardSize>>& boards, const ImageLoader& load,
-    const PipelineOptions& o, const std::vector<int>& expected) {
+    const PipelineOptions& o, const std::vector<int>& expected, const std::vector<int>& view) {
   std::vector<ImageMeasurement> out(files.size());
-  ForEachImage(files.size(), o.image_threads, [&](size_t i) {
+  auto measure = [&](size_t i, const BoardHints* hints) {
     const cv::Mat img = load(files[i]);
     if (img.empty()) throw SolveError(files[i] + ": cannot read the image");
-    out[i] = MeasureFrame(img, boards[i], expected[i], o);
-  });
+    out[i] = MeasureFrame(img, boards[i], expected[i], o, hints);
+  };
+  if (!o.hint_boards_from_first_frame) {
+    ForEachImage(files.size(), o.image_threads, [&](size_t i) { measure(i, nullptr); });
+    return out;
+  }
+  std::map<int, size_t> first_of_view;
+  for (size_t i = 0; i < files.size(); ++i) first_of_view.emplace(view[i], i);
+  std::vector<size_t> firsts;
+  for (const auto& [v, i] : first_of_view) firsts.push_back(i);
+  ForEachImage(firsts.size(), o.image_threads, [&](size_t k) { measure(firsts[k], nullptr); });
+  std::map<int, BoardHints> hints;
+  for (const auto& [v, i] : first_of_view) hints[v] = HintsFrom(out[i], o.boards);
+  std::vector<size_t> rest;
+  for (size_t i = 0; i < files.size(); ++i)
+    if (first_of_view.at(view[i]) != i) rest.push_back(i);
+  ForEachImage(rest.size(), o.image_threads,
+               [&](size_t k) { measure(rest[k], &hints.at(view[rest[k]])); });
   return out;
 }
 
@@ -399,9 +417,19 @@ std::vector<char> CornersClearOfDots(const vision::CheckerboardDetection& board,
   return vision::CornersClearOfSpots(board, boxes);
 }
 
+BoardHints HintsFrom(const ImageMeasurement& m, const vision::CheckerboardOptions& options) {
+  BoardHints hints;
+  for (const auto& b : m.boards)
+    hints.push_back(b ? std::optional(vision::HintFrom(*b, m.image_size, options)) : std::nullopt);
+  return hints;
+}
+
 ImageMeasurement MeasureImage(const cv::Mat& img, const std::vector<vision::BoardSize>& boards,
                               const vision::DotOptions& dot_options,
-                              const vision::CheckerboardOptions& board_options) {
+                              const vision::CheckerboardOptions& board_options,
+                              const BoardHints* hints) {
+  if (hints && hints->size() != boards.size())
+    throw std::invalid_argument("MeasureImage: one hint (or none) per board asked for");
   // OpenCV's detectors draw from the calling thread's cv::theRNG(): reseed it per image so
   // that an image's measurement does not depend on which images its thread measured before.
   cv::theRNG() = cv::RNG(0x6d736d63616cULL);
@@ -411,18 +439,19 @@ ImageMeasurement MeasureImage(const cv::Mat& img, const std::vector<vision::Boar
   m.depth_bits = img.depth() == CV_16U ? 16 : 8;
   if (boards.size() == 1) {
     m.board_attempts.resize(1);
-    m.boards = {
-        vision::DetectCheckerboard(img, boards[0], board_options, cv::Mat(), &m.board_attempts[0])};
+    const vision::BoardHint* hint = hints && (*hints)[0] ? &*(*hints)[0] : nullptr;
+    m.boards = {vision::DetectCheckerboard(img, boards[0], board_options, cv::Mat(),
+                                           &m.board_attempts[0], hint)};
   } else {
-    m.boards = vision::DetectCheckerboards(img, boards, board_options, &m.board_attempts);
+    m.boards = vision::DetectCheckerboards(img, boards, board_options, &m.board_attempts, hints);
   }
   m.dots = vision::DetectDots(img, dot_options, &m.dot_rejections);
   return m;
 }
 
 ImageMeasurement MeasureFrame(const cv::Mat& img, const std::vector<vision::BoardSize>& sizes,
-                              int expected, const PipelineOptions& o) {
-  ImageMeasurement m = MeasureImage(img, sizes, o.dots, o.boards);
+                              int expected, const PipelineOptions& o, const BoardHints* hints) {
+  ImageMeasurement m = MeasureImage(img, sizes, o.dots, o.boards, hints);
   const auto& host = sizes.size() == 2 ? m.boards[1] : m.boards[0];
   if (!host) return m;
   RegionRejections rej;
@@ -506,7 +535,10 @@ RecordingMeasurement MeasureRecording(const dataset::Recording& rec, const Image
       for (const auto& f : rec.step2)
         expected.push_back(static_cast<int>(
             (f.kind == Step2Kind::kNeutral ? 1 : f.triggers.size()) * f.beams.size()));
-      measured = MeasureImages(files, asks, load, o, expected);
+      // Views: step 1 (camera c1, the world board fixed), step 2 (camera c2).
+      std::vector<int> view(rec.step1.size(), 1);
+      view.resize(files.size(), 2);
+      measured = MeasureImages(files, asks, load, o, expected, view);
       // Static groups: same camera and board placement (step 1 by sliding pose, all of step 2).
       std::vector<std::vector<size_t>> static_groups;
       std::map<int, size_t> group_of_pose;

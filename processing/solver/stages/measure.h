@@ -32,14 +32,22 @@ struct ImageMeasurement {
   cv::Size image_size;
   int channels = 1, depth_bits = 8;
 };
+// `hints` (optional): per board asked for, where another image of the view found it.
+using BoardHints = std::vector<std::optional<vision::BoardHint>>;
 ImageMeasurement MeasureImage(const cv::Mat& image, const std::vector<vision::BoardSize>& boards,
                               const vision::DotOptions& dot_options,
-                              const vision::CheckerboardOptions& board_options);
+                              const vision::CheckerboardOptions& board_options,
+                              const BoardHints* hints = nullptr);
 // The same, then (PipelineOptions::adaptive_dots) a second, data-driven dot pass where the first
 // finds fewer than `expected_dots` on the plane of the board that carries them (step 1: the
 // sliding board, boards[1]; step 2: the world board).
 ImageMeasurement MeasureFrame(const cv::Mat& image, const std::vector<vision::BoardSize>& boards,
-                              int expected_dots, const PipelineOptions& options);
+                              int expected_dots, const PipelineOptions& options,
+                              const BoardHints* hints = nullptr);
+
+// The hints a measured image gives the other images of its view (one per board asked for; none
+// for a board it did not show).
+BoardHints HintsFrom(const ImageMeasurement& m, const vision::CheckerboardOptions& options);
 
 // Why blobs of a frame were not taken as its laser dots (results/detections.csv).
 struct RegionRejections {

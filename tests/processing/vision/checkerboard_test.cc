@@ -145,5 +145,74 @@ TEST(CheckerboardTest, AFrameWithoutContrastStopsAtTheContrastCheck) {
   EXPECT_NE(bad.Validate().find("min_contrast_levels = -1 must be in [0, 128]"), std::string::npos);
 }
 
+// A hint (where another image of the view found the board) is tried first, on its region only,
+// by the detector that found it; a board that has moved out of the region is still found by the
+// whole chain after it.
+TEST(CheckerboardTest, AHintIsTriedFirstOnItsRegionAndTheChainFollowsWhereItFails) {
+  const BoardSize size{7, 4};
+  const double square = 10;
+  const cv::Size image(640, 400);
+  const Eigen::Matrix3d h1 = BoardToImage(12, 2.2, {180, 150}, size, square, 1e-4);
+  std::vector<BoardAttempt> first_attempts;
+  const auto first = DetectCheckerboard(RenderBoard(h1, size, square, image), size, {}, cv::Mat(),
+                                        &first_attempts);
+  ASSERT_TRUE(first);
+  EXPECT_FALSE(first->hinted);
+  for (const auto& a : first_attempts) EXPECT_TRUE(a.region.empty());
+
+  CheckerboardOptions options;
+  options.hint_margin_squares = 2.5;
+  const BoardHint hint = HintFrom(*first, image, options);
+  EXPECT_EQ(hint.method, first->method);
+  EXPECT_EQ(hint.scale, first->scale);
+  // The region holds every corner with 2.5 squares (~22 px here) around them, and lies inside
+  // the image; a hint near the border is clipped.
+  for (const auto& p : first->corners_px) {
+    EXPECT_GT(p.x() - hint.region.x, 2.5 * first->square_px - 1);
+    EXPECT_GT(hint.region.br().x - p.x(), 2.5 * first->square_px - 1);
+    EXPECT_GT(p.y() - hint.region.y, 2.5 * first->square_px - 1);
+    EXPECT_GT(hint.region.br().y - p.y(), 2.5 * first->square_px - 1);
+  }
+  EXPECT_LT(hint.region.area(), image.area() / 2);
+  options.hint_margin_squares = 20;
+  const BoardHint wide = HintFrom(*first, image, options);
+  EXPECT_EQ(wide.region, cv::Rect(cv::Point(0, 0), image));
+
+  // The board moved by a few pixels: found in the region by the hinted detector, first try.
+  const Eigen::Matrix3d h2 = BoardToImage(12, 2.2, {184, 147}, size, square, 1e-4);
+  std::vector<BoardAttempt> attempts;
+  const auto near = DetectCheckerboard(RenderBoard(h2, size, square, image), size, {}, cv::Mat(),
+                                       &attempts, &hint);
+  ASSERT_TRUE(near);
+  EXPECT_TRUE(near->hinted);
+  ASSERT_EQ(attempts.size(), 1u);
+  EXPECT_EQ(attempts[0].region, hint.region);
+  EXPECT_TRUE(attempts[0].accepted);
+  double worst = 0;
+  for (int r = 0; r < size.rows; ++r)
+    for (int c = 0; c < size.cols; ++c)
+      worst = std::max(
+          worst, (near->corners_px[r * size.cols + c] - Apply(h2, c * square, r * square)).norm());
+  EXPECT_LT(worst, 0.25);
+
+  // The board moved to the other side: not in the region, found by the chain.
+  const Eigen::Matrix3d h3 = BoardToImage(-8, 2.2, {470, 260}, size, square, 1e-4);
+  attempts.clear();
+  const auto far = DetectCheckerboard(RenderBoard(h3, size, square, image), size, {}, cv::Mat(),
+                                      &attempts, &hint);
+  ASSERT_TRUE(far);
+  EXPECT_FALSE(far->hinted);
+  ASSERT_GE(attempts.size(), 2u);
+  EXPECT_EQ(attempts[0].region, hint.region);
+  EXPECT_FALSE(attempts[0].accepted);
+  EXPECT_TRUE(attempts.back().region.empty());
+  EXPECT_TRUE(attempts.back().accepted);
+  EXPECT_LT((far->corners_px[0] - Apply(h3, 0, 0)).norm(), 0.25);
+
+  CheckerboardOptions bad;
+  bad.hint_margin_squares = 0.5;
+  EXPECT_NE(bad.Validate().find("hint_margin_squares = 0.5 must be in [1, 20]"), std::string::npos);
+}
+
 }  // namespace
 }  // namespace msmcal::vision
