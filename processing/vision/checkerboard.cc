@@ -458,12 +458,12 @@ BoardHint HintFrom(const CheckerboardDetection& board, cv::Size image_size,
   BoardHint hint;
   hint.method = board.method;
   hint.scale = board.scale;
+  if (board.corners_px.empty()) return hint;
   double x0 = 1e18, y0 = 1e18, x1 = -1e18, y1 = -1e18;
   for (const auto& p : board.corners_px) {
     x0 = std::min(x0, p.x()), y0 = std::min(y0, p.y());
     x1 = std::max(x1, p.x()), y1 = std::max(y1, p.y());
   }
-  if (board.corners_px.empty()) return hint;
   const double grow = options.hint_margin_squares * board.square_px;
   const cv::Rect r(
       cv::Point(static_cast<int>(std::floor(x0 - grow)), static_cast<int>(std::floor(y0 - grow))),

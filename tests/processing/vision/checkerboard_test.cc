@@ -55,6 +55,17 @@ Eigen::Vector2d Apply(const Eigen::Matrix3d& h, double x, double y) {
   return p.head<2>() / p.z();
 }
 
+// The largest distance between the detected corners and the board's true projections.
+double WorstCornerError(const CheckerboardDetection& det, const Eigen::Matrix3d& h, BoardSize size,
+                        double square) {
+  double worst = 0;
+  for (int r = 0; r < size.rows; ++r)
+    for (int c = 0; c < size.cols; ++c)
+      worst = std::max(
+          worst, (det.corners_px[r * size.cols + c] - Apply(h, c * square, r * square)).norm());
+  return worst;
+}
+
 class CheckerboardRotationTest : public ::testing::TestWithParam<double> {};
 
 TEST_P(CheckerboardRotationTest, CanonicalOrderWhateverTheRotation) {
@@ -66,12 +77,7 @@ TEST_P(CheckerboardRotationTest, CanonicalOrderWhateverTheRotation) {
   const auto det = DetectCheckerboard(img, size);
   ASSERT_TRUE(det) << "rotation " << GetParam();
   ASSERT_EQ(det->corners_px.size(), 28u);
-  double worst = 0;
-  for (int r = 0; r < size.rows; ++r)
-    for (int c = 0; c < size.cols; ++c)
-      worst = std::max(
-          worst, (det->corners_px[r * size.cols + c] - Apply(h, c * square, r * square)).norm());
-  EXPECT_LT(worst, 0.25) << "rotation " << GetParam();
+  EXPECT_LT(WorstCornerError(*det, h, size, square), 0.25) << "rotation " << GetParam();
 }
 
 INSTANTIATE_TEST_SUITE_P(Rotations, CheckerboardRotationTest,
@@ -178,28 +184,26 @@ TEST(CheckerboardTest, AHintIsTriedFirstOnItsRegionAndTheChainFollowsWhereItFail
   const BoardHint wide = HintFrom(*first, image, options);
   EXPECT_EQ(wide.region, cv::Rect(cv::Point(0, 0), image));
 
-  // The board moved by a few pixels: found in the region by the hinted detector, first try.
-  const Eigen::Matrix3d h2 = BoardToImage(12, 2.2, {184, 147}, size, square, 1e-4);
+  // The board moved, seen with the hint.
   std::vector<BoardAttempt> attempts;
-  const auto near = DetectCheckerboard(RenderBoard(h2, size, square, image), size, {}, cv::Mat(),
-                                       &attempts, &hint);
+  auto detect_moved = [&](const Eigen::Matrix3d& h) {
+    attempts.clear();
+    return DetectCheckerboard(RenderBoard(h, size, square, image), size, {}, cv::Mat(), &attempts,
+                              &hint);
+  };
+  // By a few pixels: found in the region by the hinted detector, first try.
+  const Eigen::Matrix3d h2 = BoardToImage(12, 2.2, {184, 147}, size, square, 1e-4);
+  const auto near = detect_moved(h2);
   ASSERT_TRUE(near);
   EXPECT_TRUE(near->hinted);
   ASSERT_EQ(attempts.size(), 1u);
   EXPECT_EQ(attempts[0].region, hint.region);
   EXPECT_TRUE(attempts[0].accepted);
-  double worst = 0;
-  for (int r = 0; r < size.rows; ++r)
-    for (int c = 0; c < size.cols; ++c)
-      worst = std::max(
-          worst, (near->corners_px[r * size.cols + c] - Apply(h2, c * square, r * square)).norm());
-  EXPECT_LT(worst, 0.25);
+  EXPECT_LT(WorstCornerError(*near, h2, size, square), 0.25);
 
-  // The board moved to the other side: not in the region, found by the chain.
+  // To the other side: not in the region, found by the chain.
   const Eigen::Matrix3d h3 = BoardToImage(-8, 2.2, {470, 260}, size, square, 1e-4);
-  attempts.clear();
-  const auto far = DetectCheckerboard(RenderBoard(h3, size, square, image), size, {}, cv::Mat(),
-                                      &attempts, &hint);
+  const auto far = detect_moved(h3);
   ASSERT_TRUE(far);
   EXPECT_FALSE(far->hinted);
   ASSERT_GE(attempts.size(), 2u);
@@ -207,7 +211,7 @@ TEST(CheckerboardTest, AHintIsTriedFirstOnItsRegionAndTheChainFollowsWhereItFail
   EXPECT_FALSE(attempts[0].accepted);
   EXPECT_TRUE(attempts.back().region.empty());
   EXPECT_TRUE(attempts.back().accepted);
-  EXPECT_LT((far->corners_px[0] - Apply(h3, 0, 0)).norm(), 0.25);
+  EXPECT_LT(WorstCornerError(*far, h3, size, square), 0.25);
 
   CheckerboardOptions bad;
   bad.hint_margin_squares = 0.5;
