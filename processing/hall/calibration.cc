@@ -350,6 +350,25 @@ HallCalibrationResult CalibrateHall(const HallCalibrationInput& in,
   r.final_fit = FitHallModel(r.best, in.poses, f_all, bracketed);
   r.delta_t = JudgeSessionDeltaT(r, first_pass, in, fit, bracketed, f_all, bracketed_pass, scale,
                                  o.delta_t);
+  r.final_min_s = bracketed.delta_t_min_s;
+  r.final_max_s = bracketed.delta_t_max_s;
+  // The sine model's fast feature flips sign half a fast period away and its two slow features
+  // rotate the slow phase freely: its valleys every half fast period fit nearly alike, and the
+  // noise picks one (-9.2 ms for a truth of 0.55 ms on issue 15's 8-pose scene). Without a
+  // bracket, its final fit keeps the valley of the judged field model's profile minimum.
+  if (r.best == HallModelKind::kSine && !bracketed_pass && in.fast_frequency_hz > 0 &&
+      r.delta_t.model != HallModelKind::kSine && std::isfinite(r.delta_t.profile_min_s)) {
+    const double quarter = 0.25 / in.fast_frequency_hz;
+    HallFitOptions valley = fit;
+    valley.delta_t_min_s = std::max(fit.delta_t_min_s, r.delta_t.profile_min_s - quarter);
+    valley.delta_t_max_s = std::min(fit.delta_t_max_s, r.delta_t.profile_min_s + quarter);
+    if (valley.delta_t_max_s - valley.delta_t_min_s >= 2 * fit.grid_step_s) {
+      r.final_fit = FitHallModel(HallModelKind::kSine, in.poses, f_all, valley);
+      r.final_min_s = valley.delta_t_min_s;
+      r.final_max_s = valley.delta_t_max_s;
+      r.sine_in_field_valley = true;
+    }
+  }
   return r;
 }
 

@@ -88,14 +88,22 @@ struct HallCalibrationResult {
   // CalibrateHall throws.
   std::vector<ModelStats> table;
   std::vector<std::string> skipped_models;
-  HallModelKind best = HallModelKind::kLinear;  // lowest held-out chi-square (OutputScale in the .cc)
-  HallFitResult final_fit;                      // best model refitted on every pose and reading
-  Foreground foreground;                        // from every reading
+  HallModelKind best =
+      HallModelKind::kLinear;  // lowest held-out chi-square (OutputScale in the .cc)
+  HallFitResult final_fit;     // best model refitted on every pose and reading
+  Foreground foreground;       // from every reading
   // The session's dt: a field model's, judged by IdentifyDeltaT (the best model when it is a
   // field model, else the best field model). final_fit.model.delta_t_s is the chosen model's
   // own parameter (what the predictor uses); it is the session's dt only when
   // delta_t.identified() and delta_t.model == final_fit.model.kind.
   DeltaTEstimate delta_t;
+  // The window final_fit searched for its dt: the search window, the bracket of a steady field
+  // model, or, when the sine model is chosen without a bracket, a quarter fast period around
+  // delta_t.profile_min_s (sine_in_field_valley): the sine model's dt is defined only modulo half
+  // the fast period, and of those valleys the final fit keeps the judged field model's, so that
+  // its dt lies in the clocks' most likely valley rather than the one the noise preferred.
+  double final_min_s = 0, final_max_s = 0;
+  bool sine_in_field_valley = false;
 };
 
 // Throws std::invalid_argument naming what is missing or inconsistent.

@@ -238,11 +238,16 @@ std::string FormatTableTwo(const hall::HallCalibrationResult& r,
 }
 
 std::string FormatDeltaT(const hall::DeltaTEstimate& e, hall::HallModelKind model,
-                         double model_delta_t_s) {
-  const std::string own = e.model == model
-                              ? std::string()
-                              : Printf("; the %s model's own dt %.4f ms aligns phases, not clocks",
-                                       hall::ToString(model), model_delta_t_s * 1e3);
+                         double model_delta_t_s, bool in_field_valley) {
+  const std::string own =
+      e.model == model ? std::string()
+      : in_field_valley
+          ? Printf(
+                "; the %s model's own dt %.4f ms, kept in the %s model's valley, aligns phases, "
+                "not clocks",
+                hall::ToString(model), model_delta_t_s * 1e3, hall::ToString(e.model))
+          : Printf("; the %s model's own dt %.4f ms aligns phases, not clocks",
+                   hall::ToString(model), model_delta_t_s * 1e3);
   if (!e.identified())
     return Printf("delta_t not identified (%s: %s%s)", hall::ToString(e.status), e.reason.c_str(),
                   own.c_str());
@@ -271,20 +276,23 @@ HallCalibrationStepResult RunHallCalibration(const fs::path& dir,
     const double seconds = SecondsSince(t0);
     r.model_file = dir / "results" / "hall_model.yaml";
     interchange::WriteFileAtomically(r.model_file, FormatHallModelYaml(result, options));
+    WriteHallSummary(dir / "results" / "summary.json", result, setup.Input().poses.size());
     r.model = result.final_fit.model.kind;
     r.delta_t_s = result.final_fit.model.delta_t_s;
     r.time_offset = result.delta_t;
     const hall::TimeBase& tb = result.actual_time_base;
-    r.text = FormatTableTwo(result, options) +
-             Printf(
-                 "clock: actual %d edges (%d missing, %d rejected), rate error %.2f ppm, "
-                 "jitter %.2f us\n",
-                 tb.edges_used, tb.edges_missing, tb.edges_rejected, tb.RateErrorPpm(),
-                 tb.jitter_rms_us) +
-             ActualPeriodsLine(result.actual_periods, setup.actual.readings.size()) +
-             Printf("model: %s, %s, wrote %s (%.1f s)\n", hall::ToString(r.model),
-                    FormatDeltaT(r.time_offset, r.model, r.delta_t_s).c_str(),
-                    r.model_file.string().c_str(), seconds);
+    r.text =
+        FormatTableTwo(result, options) +
+        Printf(
+            "clock: actual %d edges (%d missing, %d rejected), rate error %.2f ppm, "
+            "jitter %.2f us\n",
+            tb.edges_used, tb.edges_missing, tb.edges_rejected, tb.RateErrorPpm(),
+            tb.jitter_rms_us) +
+        ActualPeriodsLine(result.actual_periods, setup.actual.readings.size()) +
+        Printf(
+            "model: %s, %s, wrote %s (%.1f s)\n", hall::ToString(r.model),
+            FormatDeltaT(r.time_offset, r.model, r.delta_t_s, result.sine_in_field_valley).c_str(),
+            r.model_file.string().c_str(), seconds);
     if (!r.time_offset.identified())
       r.log.push_back(
           {StepLogLine::Level::kWarning, "delta_t not identified (" +

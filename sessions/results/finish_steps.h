@@ -83,11 +83,13 @@ struct HallCalibrationStepResult : StepReport {
   // The session's dt (hall_model.yaml time_offset): identified or not, and why.
   hall::DeltaTEstimate time_offset;
 };
-// The text lines of `estimate` (`model_delta_t_s`: the chosen model's own dt, `model` its kind):
+// The text lines of `estimate` (`model_delta_t_s`: the chosen model's own dt, `model` its kind;
+// `in_field_valley`: that dt was searched in the judged field model's valley,
+// HallCalibrationResult::sine_in_field_valley):
 // "delta_t = 0.5474 ms +- 0.0052 ms (cubic model, identified: ...)" or
 // "delta_t not identified (splits disagree): ...".
 std::string FormatDeltaT(const hall::DeltaTEstimate& estimate, hall::HallModelKind model,
-                         double model_delta_t_s);
+                         double model_delta_t_s, bool in_field_valley = false);
 // Fits the Hall models and delta_t on `dir` (needs results/mirror_planes.csv from the solve) and
 // writes results/hall_model.yaml. `text`: Table II, the clock figures and the chosen model.
 HallCalibrationStepResult RunHallCalibration(const std::filesystem::path& dir,

@@ -464,8 +464,11 @@ class JsonFields {
 
 }  // namespace
 
-void WriteMirrorPosesSummary(const fs::path& file, const MirrorPosesSummary& summary) {
-  // summary.json is shared with other result producers: update our key only.
+namespace {
+
+// summary.json is shared by several result producers: each updates its own key only (an
+// unreadable file is replaced).
+void UpdateSummaryKey(const fs::path& file, const char* key, nlohmann::json value) {
   nlohmann::json all = nlohmann::json::object();
   if (fs::exists(file)) {
     std::ifstream in(file);
@@ -474,9 +477,43 @@ void WriteMirrorPosesSummary(const fs::path& file, const MirrorPosesSummary& sum
     } catch (const std::exception&) {
       all = nlohmann::json::object();
     }
+    if (!all.is_object()) all = nlohmann::json::object();
   }
-  all["mirror_poses"] = SummaryJson(summary);
+  all[key] = std::move(value);
   common::WriteFileAtomically(file, all.dump(2) + "\n");
+}
+
+}  // namespace
+
+void WriteMirrorPosesSummary(const fs::path& file, const MirrorPosesSummary& summary) {
+  UpdateSummaryKey(file, "mirror_poses", SummaryJson(summary));
+}
+
+void WriteHallSummary(const fs::path& file, const hall::HallCalibrationResult& r, size_t poses) {
+  const hall::DeltaTEstimate& dt = r.delta_t;
+  auto number = [](double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(); };
+  auto outputs = [](const Eigen::Vector3d& v) {
+    return nlohmann::json{{"alpha_deg", v[0]}, {"beta_deg", v[1]}, {"trans_mm", v[2]}};
+  };
+  nlohmann::json j;
+  j["model"] = hall::ToString(r.final_fit.model.kind);
+  j["poses"] = poses;
+  for (const auto& s : r.table)
+    if (s.kind == r.final_fit.model.kind) {
+      j["test_rms"] = outputs(s.test_rms_mean);
+      j["test_rms_std"] = outputs(s.test_rms_std);
+    }
+  j["train_rms"] = outputs(r.final_fit.train_rms);
+  j["model_delta_t_s"] = number(r.final_fit.model.delta_t_s);
+  j["delta_t_identified"] = dt.identified();
+  j["delta_t_status"] = hall::ToString(dt.status);
+  j["delta_t_model"] = hall::ToString(dt.model);
+  j["delta_t_s"] = dt.identified() ? number(dt.delta_t_s) : nlohmann::json();
+  j["delta_t_sigma_s"] = dt.identified() ? number(dt.sigma_s) : nlohmann::json();
+  j["delta_t_profile_min_s"] = number(dt.profile_min_s);
+  j["delta_t_reason"] = dt.reason;
+  j["actual_readings_used"] = r.actual_periods.readings_used;
+  UpdateSummaryKey(file, "hall", std::move(j));
 }
 
 MirrorPosesSummary ReadMirrorPosesSummary(const fs::path& file) {
@@ -568,6 +605,12 @@ std::string FormatHallModelYaml(const hall::HallCalibrationResult& r,
   y["format"] = "msmcal-hall-model/1";
   y["model"] = hall::ToString(m.kind);
   y["delta_t_s"] = common::ShortestDouble(m.delta_t_s);
+  // The window that dt was searched in (the whole window, a bracket, or the judged field
+  // model's valley for a sine model: HallCalibrationResult::final_min_s).
+  y["delta_t_search_s"] = YAML::Node(YAML::NodeType::Sequence);
+  y["delta_t_search_s"].push_back(common::ShortestDouble(r.final_min_s));
+  y["delta_t_search_s"].push_back(common::ShortestDouble(r.final_max_s));
+  y["delta_t_search_s"].SetStyle(YAML::EmitterStyle::Flow);
   y["outputs"] = YAML::Load("[alpha_deg, beta_deg, trans_mm]");
   YAML::Node params;
   YAML::Node a(YAML::NodeType::Sequence);

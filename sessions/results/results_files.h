@@ -144,6 +144,15 @@ MirrorPosesSummary ReadMirrorPosesSummary(const std::filesystem::path& file);
 
 // ----------------------------------------------------------------------------- Hall results
 
+// results/summary.json "hall" (written by `msmcal hall calibrate`, keeping the other keys): the
+// chosen model, the poses it was fitted to, its test and train RMS per output, its own dt
+// (model_delta_t_s, what the predictor uses), and the session's dt: delta_t_s and
+// delta_t_sigma_s (null unless delta_t_identified), delta_t_status, delta_t_model (the judged
+// field model), delta_t_profile_min_s (that model's cost minimum: the candidate when dt is not
+// identified) and delta_t_reason; actual_readings_used.
+void WriteHallSummary(const std::filesystem::path& file, const hall::HallCalibrationResult& result,
+                      size_t poses);
+
 // results/hall_model.yaml (format msmcal-hall-model/1): model kind, parameters, delta_t_s,
 // train/test RMS per output, the Table II comparison, the time base and background profile, and
 // (since issue 15; optional for readers) time_offset: whether the recording determines the

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <nlohmann/json.hpp>
 #include <opencv2/core.hpp>
 
 #include "mocks/rig/rig_simulator.h"
@@ -103,6 +104,19 @@ TEST(FinishSteps, HallCalibrationThenPredictionOnASimulatedFolder) {
   EXPECT_EQ(file.time_offset->status, cal.time_offset.status);
   EXPECT_EQ(file.time_offset->reason, cal.time_offset.reason);
   EXPECT_TRUE(std::isnan(file.time_offset->delta_t_s));  // no figure written
+  // summary.json "hall": the same verdict, no figure for the session's dt, the candidate named.
+  {
+    std::ifstream in(dir.path() / "results" / "summary.json");
+    const nlohmann::json hall = nlohmann::json::parse(in).at("hall");
+    EXPECT_EQ(hall.at("model"), "linear");
+    EXPECT_EQ(hall.at("poses").get<size_t>(), sim::MakeTruth(simulator).mirror_planes.size());
+    EXPECT_FALSE(hall.at("delta_t_identified").get<bool>());
+    EXPECT_TRUE(hall.at("delta_t_s").is_null());
+    EXPECT_EQ(hall.at("delta_t_status"), hall::ToString(cal.time_offset.status));
+    EXPECT_EQ(hall.at("delta_t_reason"), cal.time_offset.reason);
+    EXPECT_EQ(hall.at("model_delta_t_s").get<double>(), cal.delta_t_s);
+    EXPECT_EQ(hall.at("delta_t_profile_min_s").get<double>(), cal.time_offset.profile_min_s);
+  }
 
   const fs::path poses = dir.path() / "results" / "hall_poses.csv";
   const HallPredictionStepResult pred =
@@ -140,6 +154,13 @@ TEST(FinishSteps, HallCalibrationIdentifiesDeltaTOnAFullSizeSession) {
   EXPECT_TRUE(file.time_offset->identified());
   EXPECT_EQ(file.time_offset->delta_t_s, cal.time_offset.delta_t_s);
   EXPECT_EQ(file.time_offset->model, cal.time_offset.model);
+  std::ifstream in(dir.path() / "results" / "summary.json");
+  const nlohmann::json hall = nlohmann::json::parse(in).at("hall");
+  EXPECT_TRUE(hall.at("delta_t_identified").get<bool>());
+  EXPECT_EQ(hall.at("delta_t_s").get<double>(), cal.time_offset.delta_t_s);
+  EXPECT_EQ(hall.at("delta_t_sigma_s").get<double>(), cal.time_offset.sigma_s);
+  EXPECT_EQ(hall.at("delta_t_model"), hall::ToString(cal.time_offset.model));
+  EXPECT_EQ(hall.at("test_rms").size(), 3u);
   std::printf("full-size session: dt %.4f ms +- %.4f (%s model), truth %.4f ms\n",
               cal.time_offset.delta_t_s * 1e3, cal.time_offset.sigma_s * 1e3,
               hall::ToString(cal.time_offset.model), truth * 1e3);
