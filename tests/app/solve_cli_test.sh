@@ -47,7 +47,7 @@ if "$msmcal" experiment table1 --config "$dir/radius.yaml" > "$dir/out" 2>&1; th
   echo "expected a refusal"; exit 1
 fi
 grep -q "radius.yaml: invalid setting: boards.fit_max_radius_px = 40" "$dir/out"
-! grep -q "Pattern-" "$dir/out"
+if grep -q "Pattern-" "$dir/out"; then cat "$dir/out"; exit 1; fi  # (`! cmd` never trips set -e)
 # A good one: solved, with the values used written back, and they read back.
 printf 'dots:\n  min_pixels: 6\nmax_surface_elongation: 2.5\nboards:\n  fit_corners: false\n' > "$dir/good.yaml"
 "$msmcal" solve "$dir/s" --config "$dir/good.yaml" > "$dir/solve.out" 2>&1 || { cat "$dir/solve.out"; exit 1; }
@@ -55,7 +55,13 @@ grep -q "min_pixels: 6" "$dir/s/results/solve_options.yaml"
 grep -q "max_surface_elongation: 2.5" "$dir/s/results/solve_options.yaml"
 grep -q "fit_corners: false" "$dir/s/results/solve_options.yaml"
 cp "$dir/s/results/solve_options.yaml" "$dir/used.yaml"
-"$msmcal" solve "$dir/s" --config "$dir/used.yaml" > /dev/null 2>&1
+# A re-solve with a Hall model of the earlier poses in results/: it says so, naming the command.
+if grep -q "hall_model.yaml" "$dir/solve.out"; then cat "$dir/solve.out"; exit 1; fi
+touch "$dir/s/results/hall_model.yaml"
+"$msmcal" solve "$dir/s" --config "$dir/used.yaml" > "$dir/resolve.out" 2>&1
+grep -q "results/hall_model.yaml (and summary.json \"hall\") were fitted to an earlier solve's mirror poses: run \`msmcal hall calibrate $dir/s\` again" "$dir/resolve.out" ||
+  { cat "$dir/resolve.out"; exit 1; }
+rm "$dir/s/results/hall_model.yaml"
 cmp "$dir/used.yaml" "$dir/s/results/solve_options.yaml"
 /usr/bin/python3 - "$dir/s" <<'PY'
 import csv, sys, yaml
