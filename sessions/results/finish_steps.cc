@@ -164,9 +164,10 @@ SolveStepResult RunSolveStep(const fs::path& dir, const solver::PipelineOptions&
     // A Hall model from an earlier solve was fitted to other poses (a re-solve with other
     // settings): it stays, but the user is told to fit it again.
     if (fs::exists(results / "hall_model.yaml"))
-      r.warnings.push_back("results/hall_model.yaml (and summary.json \"hall\") were fitted to an "
-                           "earlier solve's mirror poses: run `msmcal hall calibrate " +
-                           dir.string() + "` again to fit them to these");
+      r.warnings.push_back(
+          "results/hall_model.yaml (and summary.json \"hall\") were fitted to an "
+          "earlier solve's mirror poses: run `msmcal hall calibrate " +
+          dir.string() + "` again to fit them to these");
     r.text = Printf(
         "solved %d scan planes (%d fast-only, %d neutral), %zu beams in %.1f s\n"
         "validation: proposed %.4f deg RMS (%.3f px), baseline %.4f deg RMS, normalised %.2f, "
