@@ -88,10 +88,10 @@ struct HallCalibrationResult {
   // CalibrateHall throws.
   std::vector<ModelStats> table;
   std::vector<std::string> skipped_models;
-  HallModelKind best =
-      HallModelKind::kLinear;  // lowest held-out chi-square (OutputScale in the .cc)
-  HallFitResult final_fit;     // best model refitted on every pose and reading
-  Foreground foreground;       // from every reading
+  // The model with the lowest held-out chi-square (OutputScale in the .cc).
+  HallModelKind best = HallModelKind::kLinear;
+  HallFitResult final_fit;  // best model refitted on every pose and reading
+  Foreground foreground;    // from every reading
   // The session's dt: a field model's, judged by IdentifyDeltaT (the best model when it is a
   // field model, else the best field model). final_fit.model.delta_t_s is the chosen model's
   // own parameter (what the predictor uses); it is the session's dt only when
