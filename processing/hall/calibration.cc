@@ -101,6 +101,17 @@ Eigen::Vector3d OutputScale(const std::vector<PoseSample>& poses) {
   return (ss / poses.size()).cwiseSqrt().cwiseMax(1e-12);
 }
 
+// `window` narrowed to a quarter fast period either side of `centre_s` (the fast drive's next
+// valley lies half a period away).
+HallFitOptions QuarterPeriodBracket(const HallFitOptions& window, double centre_s,
+                                    double fast_frequency_hz) {
+  const double quarter = 0.25 / fast_frequency_hz;
+  HallFitOptions b = window;
+  b.delta_t_min_s = std::max(window.delta_t_min_s, centre_s - quarter);
+  b.delta_t_max_s = std::min(window.delta_t_max_s, centre_s + quarter);
+  return b;
+}
+
 // The session's dt (calibration.h, HallCalibrationResult::delta_t): the best model when it is
 // a field model, else the field model with the lowest normalised test RMS, judged on its cost
 // profile over the whole window (and half a fast period beyond), its final fit in `bracketed` and
@@ -337,10 +348,8 @@ HallCalibrationResult CalibrateHall(const HallCalibrationInput& in,
     if (s.kind != HallModelKind::kSine && (!steady || s.delta_t_std_s < steady->delta_t_std_s))
       steady = &s;
   if (steady && in.fast_frequency_hz > 0 && o.repetitions > 1) {
-    const double quarter = 0.25 / in.fast_frequency_hz;
-    if (steady->delta_t_std_s < 0.25 * quarter) {
-      bracketed.delta_t_min_s = std::max(fit.delta_t_min_s, steady->delta_t_mean_s - quarter);
-      bracketed.delta_t_max_s = std::min(fit.delta_t_max_s, steady->delta_t_mean_s + quarter);
+    if (steady->delta_t_std_s < 0.0625 / in.fast_frequency_hz) {  // a sixteenth of the period
+      bracketed = QuarterPeriodBracket(fit, steady->delta_t_mean_s, in.fast_frequency_hz);
       compare(bracketed, /*progress=*/false);
       bracketed_pass = true;
     }
@@ -358,10 +367,8 @@ HallCalibrationResult CalibrateHall(const HallCalibrationInput& in,
   // bracket, its final fit keeps the valley of the judged field model's profile minimum.
   if (r.best == HallModelKind::kSine && !bracketed_pass && in.fast_frequency_hz > 0 &&
       r.delta_t.model != HallModelKind::kSine && std::isfinite(r.delta_t.profile_min_s)) {
-    const double quarter = 0.25 / in.fast_frequency_hz;
-    HallFitOptions valley = fit;
-    valley.delta_t_min_s = std::max(fit.delta_t_min_s, r.delta_t.profile_min_s - quarter);
-    valley.delta_t_max_s = std::min(fit.delta_t_max_s, r.delta_t.profile_min_s + quarter);
+    const HallFitOptions valley =
+        QuarterPeriodBracket(fit, r.delta_t.profile_min_s, in.fast_frequency_hz);
     if (valley.delta_t_max_s - valley.delta_t_min_s >= 2 * fit.grid_step_s) {
       r.final_fit = FitHallModel(HallModelKind::kSine, in.poses, f_all, valley);
       r.final_min_s = valley.delta_t_min_s;

@@ -12,6 +12,7 @@
 #include "common/text_io.h"
 #include "sessions/report/build_info.h"
 #include "sessions/report/sha256.h"
+#include "sessions/results/results_files.h"
 #include "sessions/store/session_store.h"
 
 namespace msmcal::report {
@@ -155,12 +156,6 @@ std::optional<Provenance> ReadProvenance(const fs::path& summary_json) {
 }
 
 void WriteProvenance(const fs::path& summary_json, const Provenance& p) {
-  nlohmann::json all;
-  try {
-    all = ReadAll(summary_json);
-  } catch (const std::exception&) {
-    all = nlohmann::json::object();  // as WriteMirrorPosesSummary: an unreadable file is replaced
-  }
   nlohmann::json j = {{"msmcal_version", p.msmcal_version},
                       {"git_commit", p.git_commit},
                       {"build_type", p.build_type},
@@ -180,16 +175,7 @@ void WriteProvenance(const fs::path& summary_json, const Provenance& p) {
     j["report_git_commit"] = p.report_git_commit;
     j["report_time_utc"] = p.report_time_utc;
   }
-  all["provenance"] = j;
-  // Unchanged content is not rewritten: a sweep's resume compares results/ by mtime too.
-  const std::string text = all.dump(2) + "\n";
-  if (fs::exists(summary_json)) {
-    std::ifstream in(summary_json, std::ios::binary);
-    std::ostringstream old;
-    old << in.rdbuf();
-    if (old.str() == text) return;
-  }
-  common::WriteFileAtomically(summary_json, text);
+  results::UpdateSummaryJson(summary_json, "provenance", std::move(j));
 }
 
 Provenance ResolveProvenance(const fs::path& dir, bool session_process) {

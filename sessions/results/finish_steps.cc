@@ -246,15 +246,13 @@ std::string FormatTableTwo(const hall::HallCalibrationResult& r,
 
 std::string FormatDeltaT(const hall::DeltaTEstimate& e, hall::HallModelKind model,
                          double model_delta_t_s, bool in_field_valley) {
-  const std::string own =
-      e.model == model ? std::string()
-      : in_field_valley
-          ? Printf(
-                "; the %s model's own dt %.4f ms, kept in the %s model's valley, aligns phases, "
-                "not clocks",
-                hall::ToString(model), model_delta_t_s * 1e3, hall::ToString(e.model))
-          : Printf("; the %s model's own dt %.4f ms aligns phases, not clocks",
-                   hall::ToString(model), model_delta_t_s * 1e3);
+  std::string own;
+  if (e.model != model) {
+    const std::string kept =
+        in_field_valley ? Printf(", kept in the %s model's valley,", hall::ToString(e.model)) : "";
+    own = Printf("; the %s model's own dt %.4f ms%s aligns phases, not clocks",
+                 hall::ToString(model), model_delta_t_s * 1e3, kept.c_str());
+  }
   if (!e.identified())
     return Printf("delta_t not identified (%s: %s%s)", hall::ToString(e.status), e.reason.c_str(),
                   own.c_str());
@@ -283,7 +281,7 @@ HallCalibrationStepResult RunHallCalibration(const fs::path& dir,
     const double seconds = SecondsSince(t0);
     r.model_file = dir / "results" / "hall_model.yaml";
     interchange::WriteFileAtomically(r.model_file, FormatHallModelYaml(result, options));
-    WriteHallSummary(dir / "results" / "summary.json", result, setup.Input().poses.size());
+    WriteHallSummary(dir / "results" / "summary.json", result, setup.poses.size());
     r.model = result.final_fit.model.kind;
     r.delta_t_s = result.final_fit.model.delta_t_s;
     r.time_offset = result.delta_t;

@@ -464,11 +464,7 @@ class JsonFields {
 
 }  // namespace
 
-namespace {
-
-// summary.json is shared by several result producers: each updates its own key only (an
-// unreadable file is replaced).
-void UpdateSummaryKey(const fs::path& file, const char* key, nlohmann::json value) {
+void UpdateSummaryJson(const fs::path& file, const std::string& key, nlohmann::json value) {
   nlohmann::json all = nlohmann::json::object();
   if (fs::exists(file)) {
     std::ifstream in(file);
@@ -480,13 +476,19 @@ void UpdateSummaryKey(const fs::path& file, const char* key, nlohmann::json valu
     if (!all.is_object()) all = nlohmann::json::object();
   }
   all[key] = std::move(value);
-  common::WriteFileAtomically(file, all.dump(2) + "\n");
+  // Unchanged content is not rewritten: a sweep's resume compares results/ by mtime too.
+  const std::string text = all.dump(2) + "\n";
+  if (fs::exists(file)) {
+    std::ifstream in(file, std::ios::binary);
+    std::ostringstream old;
+    old << in.rdbuf();
+    if (old.str() == text) return;
+  }
+  common::WriteFileAtomically(file, text);
 }
 
-}  // namespace
-
 void WriteMirrorPosesSummary(const fs::path& file, const MirrorPosesSummary& summary) {
-  UpdateSummaryKey(file, "mirror_poses", SummaryJson(summary));
+  UpdateSummaryJson(file, "mirror_poses", SummaryJson(summary));
 }
 
 void WriteHallSummary(const fs::path& file, const hall::HallCalibrationResult& r, size_t poses) {
@@ -513,7 +515,7 @@ void WriteHallSummary(const fs::path& file, const hall::HallCalibrationResult& r
   j["delta_t_profile_min_s"] = number(dt.profile_min_s);
   j["delta_t_reason"] = dt.reason;
   j["actual_readings_used"] = r.actual_periods.readings_used;
-  UpdateSummaryKey(file, "hall", std::move(j));
+  UpdateSummaryJson(file, "hall", std::move(j));
 }
 
 MirrorPosesSummary ReadMirrorPosesSummary(const fs::path& file) {

@@ -13,6 +13,7 @@
 
 #include <Eigen/Core>
 #include <filesystem>
+#include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
 #include <vector>
@@ -139,6 +140,11 @@ MirrorPosesSummary SummariseSolve(const solver::SolveOutput& out, double solve_t
 // Replaces the "mirror_poses" key of `file` (created if absent; an unreadable file is replaced),
 // keeping the other keys. JSON with two-space indent, keys sorted.
 void WriteMirrorPosesSummary(const std::filesystem::path& file, const MirrorPosesSummary& summary);
+// results/summary.json is shared by several result producers (mirror_poses, hall, provenance):
+// each replaces its own top-level `key` only and keeps the others; a file that is not a JSON
+// object is replaced; unchanged content is not rewritten.
+void UpdateSummaryJson(const std::filesystem::path& file, const std::string& key,
+                       nlohmann::json value);
 // Every field is required; a JSON null (how a non-finite number is written) reads as NaN.
 MirrorPosesSummary ReadMirrorPosesSummary(const std::filesystem::path& file);
 
