@@ -9,6 +9,18 @@
 
 namespace msmcal::hall {
 
+const char* ToString(DeltaTBracket bracket) {
+  switch (bracket) {
+    case DeltaTBracket::kNone:
+      return "none";
+    case DeltaTBracket::kSteadyFieldModel:
+      return "steady field model";
+    case DeltaTBracket::kDrivePhases:
+      return "drive phases";
+  }
+  return "?";
+}
+
 std::string HallCalibrationOptions::Validate() const {
   std::ostringstream s;
   if (const std::string e = time_base.Validate(); !e.empty())
@@ -19,6 +31,8 @@ std::string HallCalibrationOptions::Validate() const {
     s << "profile: " << p;
   else if (const std::string d = delta_t.Validate(); !d.empty())
     s << "delta_t: " << d;
+  else if (const std::string d = drive_phase.Validate(); !d.empty())
+    s << "drive_phase: " << d;
   else if (!(delta_t_max_s > delta_t_min_s))
     s << "delta_t window must satisfy max > min";
   else if (repetitions < 1)
@@ -337,28 +351,49 @@ HallCalibrationResult CalibrateHall(const HallCalibrationInput& in,
   };
   compare(fit, /*progress=*/true);
   const std::vector<ModelStats> first_pass = r.table;
+  r.foreground = MakeForeground(actual, background, in.pattern_period_s, profile);
+  const FieldFunction f_all = [&](double t) { return r.foreground.Value(t); };
+  r.drive_phase = EstimateDeltaTFromDrivePhases(in.poses, f_all, in.fast_frequency_hz,
+                                                in.slow_frequency_hz, in.pattern_period_s,
+                                                o.delta_t_min_s, o.delta_t_max_s, o.drive_phase);
   // The fast axis is nearly a sine: half its period away, dt has an alias that a field model
   // matches by flipping its coefficients. The field model whose dt varies least over the splits
   // (the sine model's dt is not identifiable) brackets dt to within a quarter of the fast period
-  // of its mean, for the splits (a second pass) and the final fit.
+  // of its mean, for the splits (a second pass) and the final fit; when none is steady enough,
+  // the drives' phases do, when they determine dt.
   HallFitOptions bracketed = fit;
   bool bracketed_pass = false;
   const ModelStats* steady = nullptr;
   for (const auto& s : r.table)
     if (s.kind != HallModelKind::kSine && (!steady || s.delta_t_std_s < steady->delta_t_std_s))
       steady = &s;
-  if (steady && in.fast_frequency_hz > 0 && o.repetitions > 1) {
-    if (steady->delta_t_std_s < 0.0625 / in.fast_frequency_hz) {  // a sixteenth of the period
+  if (in.fast_frequency_hz > 0 && o.repetitions > 1) {
+    if (steady && steady->delta_t_std_s < 0.0625 / in.fast_frequency_hz) {  // 1/16 period
       bracketed = QuarterPeriodBracket(fit, steady->delta_t_mean_s, in.fast_frequency_hz);
+      r.bracket = DeltaTBracket::kSteadyFieldModel;
+    } else if (r.drive_phase.chooses_valley) {
+      bracketed = QuarterPeriodBracket(fit, r.drive_phase.delta_t_s, in.fast_frequency_hz);
+      r.bracket = DeltaTBracket::kDrivePhases;
+    }
+    if (r.bracket != DeltaTBracket::kNone) {
       compare(bracketed, /*progress=*/false);
       bracketed_pass = true;
     }
   }
-  r.foreground = MakeForeground(actual, background, in.pattern_period_s, profile);
-  const FieldFunction f_all = [&](double t) { return r.foreground.Value(t); };
   r.final_fit = FitHallModel(r.best, in.poses, f_all, bracketed);
   r.delta_t = JudgeSessionDeltaT(r, first_pass, in, fit, bracketed, f_all, bracketed_pass, scale,
                                  o.delta_t);
+  // A field model that cannot tell the fast drive's valleys apart (few poses, a misfit) leaves
+  // dt to the drives' phases when they determine it.
+  if (!r.delta_t.identified() && r.drive_phase.determined) {
+    r.delta_t.field_status = r.delta_t.status;
+    r.delta_t.field_reason = r.delta_t.reason;
+    r.delta_t.status = DeltaTStatus::kIdentified;
+    r.delta_t.method = DeltaTMethod::kDrivePhases;
+    r.delta_t.delta_t_s = r.drive_phase.delta_t_s;
+    r.delta_t.sigma_s = r.drive_phase.sigma_s;
+    r.delta_t.reason.clear();
+  }
   r.final_min_s = bracketed.delta_t_min_s;
   r.final_max_s = bracketed.delta_t_max_s;
   // The sine model's fast feature flips sign half a fast period away and its two slow features

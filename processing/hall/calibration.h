@@ -24,6 +24,7 @@
 
 #include "processing/dataset/recording.h"
 #include "processing/hall/delta_t.h"
+#include "processing/hall/drive_phase.h"
 #include "processing/hall/driven_periods.h"
 #include "processing/hall/hall_model.h"
 #include "processing/hall/phase_profile.h"
@@ -46,6 +47,7 @@ struct HallCalibrationOptions {
   DrivenPeriodOptions driven_periods;  // which periods of the actual recording are the scan
   PhaseProfileOptions profile;
   DeltaTIdentificationOptions delta_t;  // when dt counts as determined by the recording
+  DrivePhaseOptions drive_phase;        // dt from the drives' phases (drive_phase.h)
   double delta_t_min_s = -0.01;
   double delta_t_max_s = 0.01;
   int repetitions = 50;
@@ -66,6 +68,15 @@ struct Foreground {
     return (actual.At(t_s) - actual.Mean()) - (background.At(t_s) - background.Mean());
   }
 };
+
+// What set the window of the splits' second pass and of the final fit (a quarter fast period
+// either side of a centre).
+enum class DeltaTBracket {
+  kNone,              // the whole search window
+  kSteadyFieldModel,  // the mean dt of the field model whose splits agree best
+  kDrivePhases,       // the drives' phases (no field model steady enough)
+};
+const char* ToString(DeltaTBracket bracket);  // "none" | "steady field model" | "drive phases"
 
 // Table II row: statistics over the repetitions.
 struct ModelStats {
@@ -93,10 +104,17 @@ struct HallCalibrationResult {
   HallFitResult final_fit;  // best model refitted on every pose and reading
   Foreground foreground;    // from every reading
   // The session's dt: a field model's, judged by IdentifyDeltaT (the best model when it is a
-  // field model, else the best field model). final_fit.model.delta_t_s is the chosen model's
-  // own parameter (what the predictor uses); it is the session's dt only when
-  // delta_t.identified() and delta_t.model == final_fit.model.kind.
+  // field model, else the best field model), or, when that does not identify it and the drives'
+  // phases determine it, theirs (delta_t.method, field_status and field_reason).
+  // final_fit.model.delta_t_s is the chosen model's own parameter (what the predictor uses); it
+  // is the session's dt only when delta_t.identified() by the field model and delta_t.model ==
+  // final_fit.model.kind.
   DeltaTEstimate delta_t;
+  // dt from the drives' phases on every pose and reading (drive_phase.h): independent of the
+  // field models, it brackets dt when no field model is steady over the splits (few poses, a
+  // field far from the models), so that the final fit keeps the clocks' valley.
+  DrivePhaseEstimate drive_phase;
+  DeltaTBracket bracket = DeltaTBracket::kNone;
   // The window final_fit searched for its dt: the search window, the bracket of a steady field
   // model, or, when the sine model is chosen without a bracket, a quarter fast period around
   // delta_t.profile_min_s (sine_in_field_valley): the sine model's dt is defined only modulo half

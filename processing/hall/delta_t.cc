@@ -21,6 +21,19 @@ std::string DeltaTIdentificationOptions::Validate() const {
   return s.str();
 }
 
+const char* ToString(DeltaTMethod method) {
+  return method == DeltaTMethod::kDrivePhases ? "drive phases" : "field model";
+}
+
+bool ParseDeltaTMethod(const std::string& text, DeltaTMethod* method) {
+  for (DeltaTMethod m : {DeltaTMethod::kFieldModel, DeltaTMethod::kDrivePhases})
+    if (text == ToString(m)) {
+      *method = m;
+      return true;
+    }
+  return false;
+}
+
 const char* ToString(DeltaTStatus status) {
   switch (status) {
     case DeltaTStatus::kIdentified:

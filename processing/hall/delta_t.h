@@ -64,9 +64,19 @@ enum class DeltaTStatus {
 const char* ToString(DeltaTStatus status);
 bool ParseDeltaTStatus(const std::string& text, DeltaTStatus* status);
 
+// What identified dt: the judged field model's cost profile (this file), or, when that does not,
+// the drives' phases (drive_phase.h; CalibrateHall).
+enum class DeltaTMethod { kFieldModel, kDrivePhases };
+const char* ToString(DeltaTMethod method);  // "field model" | "drive phases"
+bool ParseDeltaTMethod(const std::string& text, DeltaTMethod* method);
+
 struct DeltaTEstimate {
   DeltaTStatus status = DeltaTStatus::kNoFieldModel;
   bool identified() const { return status == DeltaTStatus::kIdentified; }
+  DeltaTMethod method = DeltaTMethod::kFieldModel;
+  // With kDrivePhases: the field model's own verdict (status and reason), which did not identify.
+  DeltaTStatus field_status = DeltaTStatus::kIdentified;
+  std::string field_reason;
   HallModelKind model = HallModelKind::kLinear;                 // the field model judged
   double delta_t_s = std::numeric_limits<double>::quiet_NaN();  // the final fit's dt
   // Standard deviation of the splits' dt in the minimum's valley (the bracketed pass).

@@ -256,6 +256,12 @@ std::string FormatDeltaT(const hall::DeltaTEstimate& e, hall::HallModelKind mode
   if (!e.identified())
     return Printf("delta_t not identified (%s: %s%s)", hall::ToString(e.status), e.reason.c_str(),
                   own.c_str());
+  if (e.method == hall::DeltaTMethod::kDrivePhases)
+    return Printf(
+        "delta_t = %.4f ms +- %.4f ms (identified by the drives' phases; the %s model's profile "
+        "did not: %s: %s%s)",
+        e.delta_t_s * 1e3, e.sigma_s * 1e3, hall::ToString(e.model), hall::ToString(e.field_status),
+        e.field_reason.c_str(), own.c_str());
   std::string next = std::isnan(e.separation)
                          ? std::string("no other minimum in the window")
                          : Printf("next minimum at %.3f ms, %.1f residual variances higher",
@@ -263,6 +269,22 @@ std::string FormatDeltaT(const hall::DeltaTEstimate& e, hall::HallModelKind mode
   return Printf("delta_t = %.4f ms +- %.4f ms (%s model, identified: %d of %d splits agree, %s%s)",
                 e.delta_t_s * 1e3, e.sigma_s * 1e3, hall::ToString(e.model), e.splits_agreeing,
                 e.splits, next.c_str(), own.c_str());
+}
+
+std::string FormatDrivePhase(const hall::DrivePhaseEstimate& e, hall::DeltaTBracket bracket) {
+  const char* brackets =
+      bracket == hall::DeltaTBracket::kDrivePhases ? "; it brackets the final fit" : "";
+  if (!e.determined)
+    return "drive phases: dt not determined (" + e.reason + ")" +
+           (bracket == hall::DeltaTBracket::kDrivePhases
+                ? Printf("; the likelier valley, %.4f ms, brackets the final fit",
+                         e.delta_t_s * 1e3)
+                : std::string());
+  return Printf(
+      "drive phases: dt = %.4f ms +- %.4f ms (the fast drive's valley nearest the slow drive's "
+      "%.3f +- %.3f ms, the next %.0f variances less likely; Hall axes agree %.3f / %.3f)%s",
+      e.delta_t_s * 1e3, e.sigma_s * 1e3, e.slow.delta_t_s * 1e3, e.slow.sigma_s * 1e3,
+      e.separation, e.fast.coherence, e.slow.coherence, brackets);
 }
 
 HallCalibrationStepResult RunHallCalibration(const fs::path& dir,
@@ -294,6 +316,7 @@ HallCalibrationStepResult RunHallCalibration(const fs::path& dir,
             tb.edges_used, tb.edges_missing, tb.edges_rejected, tb.RateErrorPpm(),
             tb.jitter_rms_us) +
         ActualPeriodsLine(result.actual_periods, setup.actual.readings.size()) +
+        FormatDrivePhase(result.drive_phase, result.bracket) + "\n" +
         Printf(
             "model: %s, %s, wrote %s (%.1f s)\n", hall::ToString(r.model),
             FormatDeltaT(r.time_offset, r.model, r.delta_t_s, result.sine_in_field_valley).c_str(),

@@ -90,6 +90,9 @@ struct HallCalibrationStepResult : StepReport {
 // "delta_t not identified (splits disagree): ...".
 std::string FormatDeltaT(const hall::DeltaTEstimate& estimate, hall::HallModelKind model,
                          double model_delta_t_s, bool in_field_valley = false);
+// The line of the drives' dt (hall::DrivePhaseEstimate): "drive phases: dt = 0.5512 ms +-
+// 0.0031 ms (...)" or "drive phases: dt not determined (<reason>)".
+std::string FormatDrivePhase(const hall::DrivePhaseEstimate& estimate, hall::DeltaTBracket bracket);
 // Fits the Hall models and delta_t on `dir` (needs results/mirror_planes.csv from the solve) and
 // writes results/hall_model.yaml. `text`: Table II, the clock figures and the chosen model.
 HallCalibrationStepResult RunHallCalibration(const std::filesystem::path& dir,

@@ -509,11 +509,18 @@ void WriteHallSummary(const fs::path& file, const hall::HallCalibrationResult& r
   j["model_delta_t_s"] = number(r.final_fit.model.delta_t_s);
   j["delta_t_identified"] = dt.identified();
   j["delta_t_status"] = hall::ToString(dt.status);
+  j["delta_t_method"] = hall::ToString(dt.method);
   j["delta_t_model"] = hall::ToString(dt.model);
   j["delta_t_s"] = dt.identified() ? number(dt.delta_t_s) : nlohmann::json();
   j["delta_t_sigma_s"] = dt.identified() ? number(dt.sigma_s) : nlohmann::json();
   j["delta_t_profile_min_s"] = number(dt.profile_min_s);
   j["delta_t_reason"] = dt.reason;
+  j["delta_t_bracket_from"] = hall::ToString(r.bracket);
+  j["delta_t_drive_phase_s"] =
+      r.drive_phase.determined ? number(r.drive_phase.delta_t_s) : nlohmann::json();
+  j["delta_t_drive_phase_sigma_s"] =
+      r.drive_phase.determined ? number(r.drive_phase.sigma_s) : nlohmann::json();
+  j["delta_t_drive_phase_reason"] = r.drive_phase.reason;
   j["actual_readings_used"] = r.actual_periods.readings_used;
   UpdateSummaryJson(file, "hall", std::move(j));
 }
@@ -652,7 +659,12 @@ std::string FormatHallModelYaml(const hall::HallCalibrationResult& r,
   YAML::Node to;
   to["identified"] = dt.identified();
   to["status"] = hall::ToString(dt.status);
+  to["method"] = hall::ToString(dt.method);
   to["model"] = hall::ToString(dt.model);
+  if (dt.method == hall::DeltaTMethod::kDrivePhases) {
+    to["field_status"] = hall::ToString(dt.field_status);
+    to["field_reason"] = dt.field_reason;
+  }
   auto number = [&to](const char* key, double v) {
     if (std::isfinite(v)) to[key] = common::ShortestDouble(v);
   };
@@ -674,6 +686,27 @@ std::string FormatHallModelYaml(const hall::HallCalibrationResult& r,
   to["bracket_s"].push_back(common::ShortestDouble(dt.bracket_min_s));
   to["bracket_s"].push_back(common::ShortestDouble(dt.bracket_max_s));
   to["bracket_s"].SetStyle(YAML::EmitterStyle::Flow);
+  to["bracket_from"] = hall::ToString(r.bracket);
+  // dt from the drives' phases (processing/hall/drive_phase.h): a witness independent of the
+  // field models.
+  const hall::DrivePhaseEstimate& ph = r.drive_phase;
+  YAML::Node dp;
+  dp["determined"] = ph.determined;
+  dp["chooses_valley"] = ph.chooses_valley;
+  auto dp_number = [&dp](const char* key, double v) {
+    if (std::isfinite(v)) dp[key] = common::ShortestDouble(v);
+  };
+  dp_number("delta_t_s", ph.delta_t_s);
+  dp_number("sigma_s", ph.sigma_s);
+  dp_number("slow_delta_t_s", ph.slow.delta_t_s);
+  dp_number("slow_sigma_s", ph.slow.sigma_s);
+  dp_number("fast_delta_t_s", ph.fast.delta_t_s);
+  dp_number("fast_coherence", ph.fast.coherence);
+  dp_number("slow_coherence", ph.slow.coherence);
+  dp_number("disagreement_sigmas", ph.disagreement_sigmas);
+  dp_number("separation", ph.separation);
+  if (!ph.reason.empty()) dp["reason"] = ph.reason;
+  to["drive_phase"] = dp;
   y["time_offset"] = to;
   y["protocol"]["repetitions"] = o.repetitions;
   y["protocol"]["train_fraction"] = common::ShortestDouble(o.train_fraction);
@@ -808,6 +841,18 @@ HallModelFile ParseHallModelYaml(const std::string& text, const std::string& fil
         Str(Need(to, "model", file, "time_offset."), file, "time_offset.model");
     if (!hall::ParseHallModelKind(model, &e.model))
       Fail(file, "time_offset.model", "unknown model '" + model + "'");
+    if (to["method"]) {  // files before the drives' phases: the field model
+      const std::string method = Str(to["method"], file, "time_offset.method");
+      if (!hall::ParseDeltaTMethod(method, &e.method))
+        Fail(file, "time_offset.method", "unknown method '" + method + "'");
+    }
+    if (to["field_status"]) {
+      const std::string fs = Str(to["field_status"], file, "time_offset.field_status");
+      if (!hall::ParseDeltaTStatus(fs, &e.field_status))
+        Fail(file, "time_offset.field_status", "unknown status '" + fs + "'");
+    }
+    if (to["field_reason"])
+      e.field_reason = Str(to["field_reason"], file, "time_offset.field_reason");
     auto number = [&](const char* key, double* out) {
       if (to[key]) *out = Num(to[key], file, std::string("time_offset.") + key);
     };

@@ -200,18 +200,33 @@ TEST(DeltaTCalibration, ADelayOutsideTheSearchWindowIsNotReported) {
   }
 }
 
-// The only model that cannot tell the clocks: the sine model's dt is never the session's.
+// The only model that cannot tell the clocks: the sine model's dt is never the session's. The
+// drives' phases, when they determine dt, are (method kDrivePhases, the field verdict kept).
 TEST(DeltaTCalibration, TheSineModelAloneDoesNotIdentifyDt) {
   SyntheticHallRig rig;
   const auto actual = rig.Record(10, true, 81);
   const auto background = rig.Record(5, false, 82);
-  HallCalibrationOptions o;
-  o.repetitions = 2;
-  o.models = {HallModelKind::kSine};
-  const HallCalibrationResult r =
-      CalibrateHall(MakeInput(rig, actual, background, rig.Poses(60, 0.02, 0.005, 83)), o);
-  EXPECT_EQ(r.delta_t.status, DeltaTStatus::kNoFieldModel);
-  EXPECT_NE(r.delta_t.reason.find("sine model"), std::string::npos) << r.delta_t.reason;
+  for (bool phases : {false, true}) {
+    HallCalibrationOptions o;
+    o.repetitions = 2;
+    o.models = {HallModelKind::kSine};
+    if (!phases) o.drive_phase.min_phase_snr = 1e12;  // never determined
+    const HallCalibrationResult r =
+        CalibrateHall(MakeInput(rig, actual, background, rig.Poses(60, 0.02, 0.005, 83)), o);
+    if (!phases) {
+      EXPECT_EQ(r.delta_t.status, DeltaTStatus::kNoFieldModel);
+      EXPECT_NE(r.delta_t.reason.find("sine model"), std::string::npos) << r.delta_t.reason;
+      continue;
+    }
+    ASSERT_TRUE(r.delta_t.identified()) << r.drive_phase.reason;
+    EXPECT_EQ(r.delta_t.method, DeltaTMethod::kDrivePhases);
+    EXPECT_EQ(r.delta_t.field_status, DeltaTStatus::kNoFieldModel);
+    EXPECT_NE(r.delta_t.field_reason.find("sine model"), std::string::npos);
+    EXPECT_EQ(r.delta_t.reason, "");
+    EXPECT_EQ(r.delta_t.delta_t_s, r.drive_phase.delta_t_s);
+    EXPECT_EQ(r.delta_t.sigma_s, r.drive_phase.sigma_s);
+    EXPECT_NEAR(r.delta_t.delta_t_s, rig.delay_s, 0.02e-3);
+  }
 }
 
 // A short recording whose poses sample the fast drive's phase badly: 2 s (4 pattern periods),
@@ -258,9 +273,12 @@ TEST(DeltaTCalibration, TheSineModelsDtIsKeptInTheFieldModelsValley) {
     HallCalibrationOptions o;
     o.repetitions = 10;
     o.models = {HallModelKind::kLinear, HallModelKind::kSine};
+    o.drive_phase.min_phase_snr = 1e12;  // the drives' phases never bracket (next test)
     const HallCalibrationInput in =
         MakeInput(rig, actual, background, rig.Poses(n, 0.03, 0.01, 300 + seed));
     const HallCalibrationResult r = CalibrateHall(in, o);
+    EXPECT_FALSE(r.drive_phase.determined);
+    EXPECT_EQ(r.bracket, DeltaTBracket::kNone);
     ASSERT_EQ(r.best, HallModelKind::kSine);
     EXPECT_FALSE(r.delta_t.identified());
     EXPECT_EQ(r.delta_t.model, HallModelKind::kLinear);
@@ -279,6 +297,42 @@ TEST(DeltaTCalibration, TheSineModelsDtIsKeptInTheFieldModelsValley) {
     EXPECT_GT(std::abs(free.model.delta_t_s - rig.delay_s), quarter) << free.model.delta_t_s;
     EXPECT_LT(r.final_fit.train_rms.norm(), 1.1 * free.train_rms.norm());
   }
+}
+
+// The same sessions with the drives' phases (drive_phase.h): no field model is steady over the
+// splits, so the phases bracket the splits' second pass and the final fit; the chosen model's dt
+// is the clocks' valley's, and the phases' own dt is within 0.05 ms of the delay.
+TEST(DeltaTCalibration, TheDrivesPhasesBracketDtWhenNoFieldModelIsSteady) {
+  int by_phases = 0;
+  for (auto [n, seed] : {std::pair{8, 1}, std::pair{12, 1}, std::pair{8, 2}, std::pair{8, 3}}) {
+    SCOPED_TRACE(std::to_string(n) + " poses, seed " + std::to_string(seed));
+    SyntheticHallRig rig;
+    rig.noise_uT = 1.5;
+    const auto actual = rig.Record(4, true, 100 + seed);
+    const auto background = rig.Record(2, false, 200 + seed);
+    HallCalibrationOptions o;
+    o.repetitions = 10;
+    o.models = {HallModelKind::kLinear, HallModelKind::kSine};
+    const HallCalibrationResult r =
+        CalibrateHall(MakeInput(rig, actual, background, rig.Poses(n, 0.03, 0.01, 300 + seed)), o);
+    ASSERT_TRUE(r.drive_phase.determined) << r.drive_phase.reason;
+    EXPECT_NEAR(r.drive_phase.delta_t_s, rig.delay_s, 0.05e-3);
+    EXPECT_LT(std::abs(r.drive_phase.delta_t_s - rig.delay_s), 4 * r.drive_phase.sigma_s + 2e-6);
+    // Seed 2's linear model happens to be steady over the splits: its bracket has priority.
+    ASSERT_NE(r.bracket, DeltaTBracket::kNone);
+    if (r.bracket == DeltaTBracket::kDrivePhases) {
+      ++by_phases;
+      const double quarter = 0.25 / rig.f_fast;
+      EXPECT_NEAR(r.final_min_s, r.drive_phase.delta_t_s - quarter, 1e-12);
+      EXPECT_NEAR(r.final_max_s, r.drive_phase.delta_t_s + quarter, 1e-12);
+    }
+    EXPECT_FALSE(r.sine_in_field_valley);
+    EXPECT_NEAR(r.final_fit.model.delta_t_s, rig.delay_s, 0.1e-3) << ToString(r.best);
+    std::printf("%d poses, seed %d: phases %.4f +- %.4f ms, %s model %.4f ms, session %s\n", n,
+                seed, r.drive_phase.delta_t_s * 1e3, r.drive_phase.sigma_s * 1e3, ToString(r.best),
+                r.final_fit.model.delta_t_s * 1e3, ToString(r.delta_t.status));
+  }
+  EXPECT_EQ(by_phases, 3);
 }
 
 }  // namespace

@@ -9,7 +9,8 @@ namespace msmcal::hall {
 namespace {
 
 Eigen::Vector3d Signal(double t) {
-  return {std::sin(2 * M_PI * 6 * t), 2 * std::cos(2 * M_PI * 2 * t) + 1, 0.5 * std::sin(2 * M_PI * 20 * t + 1)};
+  return {std::sin(2 * M_PI * 6 * t), 2 * std::cos(2 * M_PI * 2 * t) + 1,
+          0.5 * std::sin(2 * M_PI * 20 * t + 1)};
 }
 
 TEST(PhaseProfile, FoldsManyPeriodsIntoASmoothProfile) {
@@ -26,7 +27,8 @@ TEST(PhaseProfile, FoldsManyPeriodsIntoASmoothProfile) {
   binned.method = PhaseProfileOptions::Method::kBinned;
   const PhaseProfile p = PhaseProfile::Build(t, v, period, binned);
   double max_err = 0;
-  for (double s = 0; s < 2 * period; s += 1.3e-4) max_err = std::max(max_err, (p.At(s) - Signal(s)).cwiseAbs().maxCoeff());
+  for (double s = 0; s < 2 * period; s += 1.3e-4)
+    max_err = std::max(max_err, (p.At(s) - Signal(s)).cwiseAbs().maxCoeff());
   EXPECT_LT(max_err, 2e-3);
   EXPECT_NEAR(p.Mean().y(), 1.0, 1e-3);
   // C1: no jump at bin boundaries, nor across the period wrap.
@@ -43,7 +45,7 @@ TEST(PhaseProfile, FillsEmptyBinsAndAveragesNoise) {
   std::vector<Eigen::Vector3d> v;
   for (int i = 0; i < 100000; ++i) {
     const double ti = std::fmod(i * 0.6180339887498949, 1.0);  // equidistributed phases
-    if (ti > 0.400 && ti < 0.403) continue;  // a hole in phase
+    if (ti > 0.400 && ti < 0.403) continue;                    // a hole in phase
     t.push_back(ti);
     v.push_back(Signal(ti) + Eigen::Vector3d(noise(rng), noise(rng), noise(rng)));
   }
@@ -65,8 +67,9 @@ TEST(PhaseProfile, FillsEmptyBinsAndAveragesNoise) {
 TEST(PhaseProfile, FourierReconstructsPhasesTheReadingsNeverVisited) {
   const double period = 0.2;
   auto signal = [](double t) {
-    return Eigen::Vector3d(100 * std::sin(2 * M_PI * 205 * t + 0.3) + 5 * std::sin(2 * M_PI * 410 * t),
-                           80 * std::sin(2 * M_PI * 5 * t), 30 * std::cos(2 * M_PI * 200 * t) + 7);
+    return Eigen::Vector3d(
+        100 * std::sin(2 * M_PI * 205 * t + 0.3) + 5 * std::sin(2 * M_PI * 410 * t),
+        80 * std::sin(2 * M_PI * 5 * t), 30 * std::cos(2 * M_PI * 200 * t) + 7);
   };
   std::vector<double> t;
   std::vector<Eigen::Vector3d> v;
@@ -89,7 +92,8 @@ TEST(PhaseProfile, FourierReconstructsPhasesTheReadingsNeverVisited) {
 }
 
 TEST(PhaseProfile, RejectsBadInput) {
-  EXPECT_THROW(PhaseProfile::Build({0, 1}, {Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero()}, 1.0), std::invalid_argument);
+  EXPECT_THROW(PhaseProfile::Build({0, 1}, {Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero()}, 1.0),
+               std::invalid_argument);
   EXPECT_THROW(PhaseProfile::FromBins(1.0, {Eigen::Vector3d::Zero()}), std::invalid_argument);
 }
 

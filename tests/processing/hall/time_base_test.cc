@@ -9,7 +9,8 @@ namespace {
 
 std::vector<double> Edges(double offset_us, double ppm, double period, int n) {
   std::vector<double> e;
-  for (int k = 0; k < n; ++k) e.push_back(std::llround(offset_us + 1e6 * (1 + ppm * 1e-6) * k * period));
+  for (int k = 0; k < n; ++k)
+    e.push_back(std::llround(offset_us + 1e6 * (1 + ppm * 1e-6) * k * period));
   return e;
 }
 
