@@ -21,6 +21,25 @@ const char* ToString(DeltaTBracket bracket) {
   return "?";
 }
 
+DeltaTBracket ChooseDeltaTBracket(double steady_mean_s, double steady_std_s,
+                                  const DrivePhaseEstimate& phases, double fast_frequency_hz,
+                                  double* centre_s) {
+  const bool is_steady = steady_std_s < 0.0625 / fast_frequency_hz;  // a sixteenth of the period
+  // Splits that agree on the alias (a field model that absorbs the half-period shift alike on
+  // every split) lose against drives' phases that determine another valley.
+  const bool overruled = is_steady && phases.determined &&
+                         std::abs(steady_mean_s - phases.delta_t_s) > 0.25 / fast_frequency_hz;
+  if (is_steady && !overruled) {
+    *centre_s = steady_mean_s;
+    return DeltaTBracket::kSteadyFieldModel;
+  }
+  if (phases.chooses_valley) {
+    *centre_s = phases.delta_t_s;
+    return DeltaTBracket::kDrivePhases;
+  }
+  return DeltaTBracket::kNone;
+}
+
 std::string HallCalibrationOptions::Validate() const {
   std::ostringstream s;
   if (const std::string e = time_base.Validate(); !e.empty())
@@ -368,13 +387,12 @@ HallCalibrationResult CalibrateHall(const HallCalibrationInput& in,
     if (s.kind != HallModelKind::kSine && (!steady || s.delta_t_std_s < steady->delta_t_std_s))
       steady = &s;
   if (in.fast_frequency_hz > 0 && o.repetitions > 1) {
-    if (steady && steady->delta_t_std_s < 0.0625 / in.fast_frequency_hz) {  // 1/16 period
-      bracketed = QuarterPeriodBracket(fit, steady->delta_t_mean_s, in.fast_frequency_hz);
-      r.bracket = DeltaTBracket::kSteadyFieldModel;
-    } else if (r.drive_phase.chooses_valley) {
-      bracketed = QuarterPeriodBracket(fit, r.drive_phase.delta_t_s, in.fast_frequency_hz);
-      r.bracket = DeltaTBracket::kDrivePhases;
-    }
+    double centre = 0;
+    r.bracket = ChooseDeltaTBracket(steady ? steady->delta_t_mean_s : 0.0,
+                                    steady ? steady->delta_t_std_s : HUGE_VAL, r.drive_phase,
+                                    in.fast_frequency_hz, &centre);
+    if (r.bracket != DeltaTBracket::kNone)
+      bracketed = QuarterPeriodBracket(fit, centre, in.fast_frequency_hz);
     if (r.bracket != DeltaTBracket::kNone) {
       compare(bracketed, /*progress=*/false);
       bracketed_pass = true;

@@ -74,9 +74,17 @@ struct Foreground {
 enum class DeltaTBracket {
   kNone,              // the whole search window
   kSteadyFieldModel,  // the mean dt of the field model whose splits agree best
-  kDrivePhases,       // the drives' phases (no field model steady enough)
+  kDrivePhases,       // the drives' phases: no field model steady enough, or the steady one
+                      // sits in another valley than the phases determine (splits on an alias)
 };
 const char* ToString(DeltaTBracket bracket);  // "none" | "steady field model" | "drive phases"
+// The bracket's source and centre (*centre_s; untouched for kNone): the steadiest field model
+// (its split dt's mean and standard deviation; steady below a sixteenth of the fast period)
+// unless the drives' phases determine dt more than a quarter fast period away from it; else the
+// phases when they choose a valley; else none.
+DeltaTBracket ChooseDeltaTBracket(double steady_mean_s, double steady_std_s,
+                                  const DrivePhaseEstimate& phases, double fast_frequency_hz,
+                                  double* centre_s);
 
 // Table II row: statistics over the repetitions.
 struct ModelStats {

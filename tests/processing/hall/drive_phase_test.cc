@@ -9,6 +9,7 @@
 
 #include <cmath>
 
+#include "processing/hall/calibration.h"
 #include "synthetic_hall.h"
 
 namespace msmcal::hall {
@@ -142,6 +143,40 @@ TEST(DrivePhase, RefusesWhatDoesNotDetermineDt) {
   EXPECT_THROW(EstimateDeltaTFromDrivePhases(Poses(rig, 8, 0.03, 1), Foreground(rig), rig.f_fast,
                                              rig.f_slow, rig.period, -0.01, 0.01, bad),
                std::invalid_argument);
+}
+
+// Which valley the splits' second pass and the final fit search: a steady field model's, unless
+// the drives' phases determine another one (the field model's splits agreeing on an alias, as
+// the README's twin sweep once did at -1.96 ms for 0.55 ms); the phases' when no field model is
+// steady and they choose a valley; else the whole window.
+TEST(DrivePhase, TheBracketIsTheSteadyFieldModelsUnlessThePhasesDetermineAnotherValley) {
+  const double f = 205, quarter = 0.25 / f;
+  DrivePhaseEstimate phases;
+  phases.delta_t_s = 0.55e-3;
+  double centre = -1;
+  // Nothing steady, nothing chosen.
+  EXPECT_EQ(ChooseDeltaTBracket(0, HUGE_VAL, phases, f, &centre), DeltaTBracket::kNone);
+  EXPECT_EQ(centre, -1);
+  // A steady field model (std 20 us < 1/16 period = 0.3 ms) and no phases.
+  EXPECT_EQ(ChooseDeltaTBracket(0.52e-3, 20e-6, phases, f, &centre),
+            DeltaTBracket::kSteadyFieldModel);
+  EXPECT_EQ(centre, 0.52e-3);
+  // Phases that choose a valley but do not determine dt: the steady model keeps priority even on
+  // another valley; without a steady model they bracket.
+  phases.chooses_valley = true;
+  EXPECT_EQ(ChooseDeltaTBracket(-1.89e-3, 20e-6, phases, f, &centre),
+            DeltaTBracket::kSteadyFieldModel);
+  EXPECT_EQ(centre, -1.89e-3);
+  EXPECT_EQ(ChooseDeltaTBracket(2.9e-3, 1e-3, phases, f, &centre), DeltaTBracket::kDrivePhases);
+  EXPECT_EQ(centre, 0.55e-3);
+  // Determined phases: in the steady model's valley (within a quarter period) the steady model's
+  // centre stays; in another valley the phases overrule it.
+  phases.determined = true;
+  EXPECT_EQ(ChooseDeltaTBracket(0.55e-3 + 0.9 * quarter, 20e-6, phases, f, &centre),
+            DeltaTBracket::kSteadyFieldModel);
+  EXPECT_EQ(ChooseDeltaTBracket(0.55e-3 - 0.5 / f, 20e-6, phases, f, &centre),
+            DeltaTBracket::kDrivePhases);
+  EXPECT_EQ(centre, 0.55e-3);
 }
 
 }  // namespace
