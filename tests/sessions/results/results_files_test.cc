@@ -455,6 +455,50 @@ TEST(HallModelYaml, TimeOffsetRoundTripAndOlderFilesWithoutIt) {
             std::string::npos);
 }
 
+// dt identified by the drives' phases (processing/hall/drive_phase.h): the method and the field
+// model's own verdict round-trip; files without `method` are the field model's; an unknown
+// method is named.
+TEST(HallModelYaml, TheDrivePhasesMethodRoundTrips) {
+  hall::HallCalibrationResult r = SampleHallResult();
+  r.delta_t.status = hall::DeltaTStatus::kIdentified;
+  r.delta_t.method = hall::DeltaTMethod::kDrivePhases;
+  r.delta_t.field_status = hall::DeltaTStatus::kSplitsDisagree;
+  r.delta_t.field_reason = "13 of 50 train/test splits find dt elsewhere";
+  r.delta_t.delta_t_s = 5.55e-4;
+  r.delta_t.sigma_s = 1.1e-5;
+  r.drive_phase.determined = r.drive_phase.chooses_valley = true;
+  r.drive_phase.delta_t_s = 5.55e-4;
+  r.drive_phase.separation = 873.5;
+  r.bracket = hall::DeltaTBracket::kDrivePhases;
+  const std::string text = FormatHallModelYaml(r, {});
+  const HallModelFile back = ParseHallModelYaml(text, "a.yaml");
+  ASSERT_TRUE(back.time_offset.has_value());
+  EXPECT_TRUE(back.time_offset->identified());
+  EXPECT_EQ(back.time_offset->method, hall::DeltaTMethod::kDrivePhases);
+  EXPECT_EQ(back.time_offset->field_status, hall::DeltaTStatus::kSplitsDisagree);
+  EXPECT_EQ(back.time_offset->field_reason, r.delta_t.field_reason);
+  EXPECT_EQ(back.time_offset->delta_t_s, 5.55e-4);
+  const YAML::Node y = YAML::Load(text);
+  EXPECT_EQ(y["time_offset"]["bracket_from"].as<std::string>(), "drive phases");
+  EXPECT_TRUE(y["time_offset"]["drive_phase"]["determined"].as<bool>());
+  EXPECT_EQ(y["time_offset"]["drive_phase"]["separation"].as<double>(), 873.5);
+  // Without `method` (files before the drives' phases): the field model's.
+  YAML::Node old = YAML::Load(text);
+  old["time_offset"].remove("method");
+  YAML::Emitter e;
+  e << old;
+  EXPECT_EQ(ParseHallModelYaml(e.c_str(), "b.yaml").time_offset->method,
+            hall::DeltaTMethod::kFieldModel);
+  std::string bad = text;
+  const size_t at = bad.find("method: drive phases");
+  ASSERT_NE(at, std::string::npos) << text;
+  bad.replace(at, 20, "method: guess");
+  EXPECT_NE(ErrorOf([&] {
+              ParseHallModelYaml(bad, "c.yaml");
+            }).find("c.yaml: field 'time_offset.method': unknown method 'guess'"),
+            std::string::npos);
+}
+
 TEST(HallModelYaml, ABadFieldIsNamed) {
   TempDir dir;
   const fs::path file = dir.path() / "hall_model.yaml";
