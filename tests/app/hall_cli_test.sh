@@ -37,12 +37,18 @@ assert abs(dt - dt_true) < 50e-6, (dt, dt_true)
 to = model["time_offset"]
 assert to["identified"] is True and to["status"] == "identified", to
 assert to["model"] == "cubic" and abs(float(to["delta_t_s"]) - dt_true) < 50e-6, to
+# The drives' phases agree (docs/hall-calibration.md); the field model identified dt itself.
+assert to["method"] == "field model" and to["bracket_from"] == "steady field model", to
+dp = to["drive_phase"]
+assert dp["determined"] is True and abs(float(dp["delta_t_s"]) - dt_true) < 50e-6, dp
 assert {"alpha_deg", "beta_deg", "trans_mm"} <= set(model["test_rms"])
 # results/summary.json "hall" (the interchange format's summary figures include dt).
 import json
 hs = json.load(open(f"{d}/s/results/summary.json"))["hall"]
 assert hs["model"] == "cubic" and hs["delta_t_identified"] is True, hs
 assert hs["delta_t_s"] == float(to["delta_t_s"]) and hs["delta_t_status"] == "identified", hs
+assert hs["delta_t_method"] == "field model", hs
+assert hs["delta_t_drive_phase_s"] == float(dp["delta_t_s"]) and hs["delta_t_drive_phase_reason"] == "", hs
 assert hs["poses"] == sum(1 for _ in open(f"{d}/s/results/mirror_planes.csv")) - 1, hs
 n_in = sum(1 for _ in open(f"{d}/s/hall/actual.csv")) - 1
 rows = list(csv.DictReader(open(f"{d}/poses.csv")))
