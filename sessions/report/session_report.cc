@@ -750,7 +750,11 @@ SessionReport BuildSessionReport(const fs::path& dir, const ReportOptions& optio
         "Mean +- std over the random train/test splits (results/hall_model.yaml). Final "
         "model: " +
         rep.hall_model +
-        (rep.delta_t_identified ? ", delta_t " + Fmt("%.4f ms", rep.delta_t_s * 1e3)
+        (rep.delta_t_identified ? ", delta_t " + Fmt("%.4f ms", rep.delta_t_s * 1e3) +
+                                      (model.time_offset && model.time_offset->method ==
+                                                                hall::DeltaTMethod::kDrivePhases
+                                           ? " (identified by the drives' phases)"
+                                           : "")
                                 : ", delta_t not identified (" + rep.delta_t_reason + ")") +
         (have_truth ? Fmt(" (truth %.4f ms)", rep.delta_t_truth_s * 1e3) : "") + ".";
     rep.tables.push_back(t2);

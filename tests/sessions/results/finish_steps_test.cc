@@ -21,6 +21,44 @@ namespace fs = std::filesystem;
 using testing::Spit;
 using testing::TempDir;
 
+// The command's lines for dt identified by the drives' phases (processing/hall/drive_phase.h):
+// the number, and the field model's own verdict that did not identify it; the phases' line
+// determined, choosing only the bracket's valley, or not at all.
+TEST(FinishSteps, DeltaTLinesOfTheDrivesPhases) {
+  hall::DeltaTEstimate e;
+  e.status = hall::DeltaTStatus::kIdentified;
+  e.method = hall::DeltaTMethod::kDrivePhases;
+  e.model = hall::HallModelKind::kLinear;
+  e.field_status = hall::DeltaTStatus::kSplitsDisagree;
+  e.field_reason = "13 of 50 train/test splits find dt elsewhere";
+  e.delta_t_s = 0.5553e-3;
+  e.sigma_s = 0.0112e-3;
+  EXPECT_EQ(FormatDeltaT(e, hall::HallModelKind::kSine, 0.5582e-3),
+            "delta_t = 0.5553 ms +- 0.0112 ms (identified by the drives' phases; the linear "
+            "model's profile did not: splits disagree: 13 of 50 train/test splits find dt "
+            "elsewhere; the sine model's own dt 0.5582 ms aligns phases, not clocks)");
+  hall::DrivePhaseEstimate ph;
+  ph.determined = ph.chooses_valley = true;
+  ph.delta_t_s = 0.5553e-3;
+  ph.sigma_s = 0.0112e-3;
+  ph.slow.delta_t_s = 0.407e-3;
+  ph.slow.sigma_s = 0.077e-3;
+  ph.separation = 873.6;
+  ph.fast.coherence = 0.9991;
+  ph.slow.coherence = 1.0;
+  EXPECT_EQ(FormatDrivePhase(ph, hall::DeltaTBracket::kDrivePhases),
+            "drive phases: dt = 0.5553 ms +- 0.0112 ms (the fast drive's valley nearest the slow "
+            "drive's 0.407 +- 0.077 ms, the next 874 variances less likely; Hall axes agree "
+            "0.999 / 1.000); it brackets the final fit");
+  ph.determined = false;
+  ph.reason = "the slow drive's phase does not choose";
+  EXPECT_EQ(FormatDrivePhase(ph, hall::DeltaTBracket::kDrivePhases),
+            "drive phases: dt not determined (the slow drive's phase does not choose); the "
+            "likelier valley, 0.5553 ms, brackets the final fit");
+  EXPECT_EQ(FormatDrivePhase(ph, hall::DeltaTBracket::kSteadyFieldModel),
+            "drive phases: dt not determined (the slow drive's phase does not choose)");
+}
+
 TEST(FinishSteps, FailuresAreReturnedNamingTheFile) {
   TempDir dir;
   const SolveStepResult solve = RunSolveStep(dir.path(), solver::PipelineOptions{});
