@@ -1,6 +1,7 @@
 #include "processing/hall/drive_phase.h"
 
 #include <Eigen/Dense>
+#include <algorithm>
 #include <cmath>
 #include <complex>
 #include <cstdio>
@@ -121,8 +122,14 @@ DrivePhaseEstimate EstimateDeltaTFromDrivePhases(const std::vector<PoseSample>& 
   const double w[2] = {2 * M_PI * f[0], 2 * M_PI * f[1]};
   const PoseFit fits[2] = {FitPoseOutput(poses, 0, w), FitPoseOutput(poses, 1, w)};
 
-  // The field's complex amplitudes per axis and drive, over one pattern period.
-  const int n = options.samples_per_period;
+  // The field's complex amplitudes per axis and drive, over one pattern period: at least 16
+  // samples per fast cycle (a long pattern, 1 / gcd of the drives, holds thousands of cycles).
+  const double fast_cycles = f[0] * pattern_period_s;
+  if (fast_cycles > (1 << 20)) {
+    r.reason = "the pattern period holds more than 2^20 fast cycles";
+    return r;
+  }
+  const int n = std::max(options.samples_per_period, static_cast<int>(std::ceil(16 * fast_cycles)));
   Complex zb[3][2] = {};
   for (int s = 0; s < n; ++s) {
     const double t = pattern_period_s * s / n;

@@ -48,7 +48,9 @@ struct DrivePhaseOptions {
   // Enough to choose the valley that the final fit searches (chooses_valley), not to identify dt.
   double min_valley_separation = 9;
   double max_disagreement_sigmas = 5;  // slow vs the chosen fast valley
-  int samples_per_period = 4096;       // the foreground's Fourier coefficients
+  // Samples of the foreground per pattern period for its Fourier coefficients (at least 16 per
+  // fast cycle are taken whatever this says).
+  int samples_per_period = 4096;
   std::string Validate() const;
 };
 

@@ -73,6 +73,27 @@ TEST(DrivePhase, RecoversTheDelayFromEightPosesAnywhereInTheWindow) {
   EXPECT_EQ(seeds, 15);
 }
 
+// A long pattern: 205.05 Hz and 5 Hz repeat every 20 s, 4101 fast cycles; the foreground is
+// sampled at 16 per fast cycle, not at the default 4096 per period: 204.8 samples per second
+// would fold a field component at 204.55 Hz (whole cycles per pattern too: an interferer, a
+// sideband) onto the fast drive's 205.05 Hz and turn its phase.
+TEST(DrivePhase, ALongPatternPeriodIsSampledAboveTheFastDrive) {
+  SyntheticHallRig rig;
+  rig.f_fast = 205.05;
+  rig.f_slow = 5;
+  rig.period = 20;
+  rig.delay_s = 0.55e-3;
+  const FieldFunction field = Foreground(rig);
+  const FieldFunction with_interferer = [field](double t) {
+    return Eigen::Vector3d(field(t) + Eigen::Vector3d(0, 200, 0) * std::sin(2 * M_PI * 204.55 * t));
+  };
+  const DrivePhaseEstimate e = EstimateDeltaTFromDrivePhases(
+      Poses(rig, 12, 0.01, 5), with_interferer, rig.f_fast, rig.f_slow, rig.period, -0.01, 0.01);
+  ASSERT_TRUE(e.determined) << e.reason;
+  EXPECT_NEAR(e.delta_t_s, rig.delay_s, 0.02e-3);
+  EXPECT_GT(e.fast.coherence, 0.99);
+}
+
 // Four times the rig's angles (alpha +-8.7 deg, beta +-34 deg): the dipole's field is far from
 // linear in the pose, which moves a linear field model's minimum; the fundamentals' phases stay.
 TEST(DrivePhase, AStronglyNonlinearFieldKeepsThePhases) {
