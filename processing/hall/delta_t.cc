@@ -66,13 +66,15 @@ bool ParseDeltaTStatus(const std::string& text, DeltaTStatus* status) {
   return false;
 }
 
-namespace {
-
-std::string Ms(double s) {
+std::string FormatMs(double s) {
   char buf[32];
   std::snprintf(buf, sizeof buf, "%.3f ms", s * 1e3);
   return buf;
 }
+
+namespace {
+
+std::string Ms(double s) { return FormatMs(s); }
 
 double StdDev(const std::vector<double>& v) {
   if (v.empty()) return std::numeric_limits<double>::quiet_NaN();

@@ -103,6 +103,9 @@ struct DeltaTEvidence {
   double fast_frequency_hz = 0;
 };
 
+// Seconds as "0.550 ms" (the reasons' format; shared by delta_t and drive_phase).
+std::string FormatMs(double s);
+
 // Judges `evidence` (see the file comment). Throws std::invalid_argument for bad options or an
 // empty profile.
 DeltaTEstimate IdentifyDeltaT(const DeltaTEvidence& evidence,

@@ -8,6 +8,8 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "processing/hall/delta_t.h"
+
 namespace msmcal::hall {
 
 std::string DrivePhaseOptions::Validate() const {
@@ -31,11 +33,7 @@ namespace {
 
 using Complex = std::complex<double>;
 
-std::string Ms(double s) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%.3f ms", s * 1e3);
-  return buf;
-}
+std::string Ms(double s) { return FormatMs(s); }  // delta_t.h
 
 // The pose output's complex amplitude at each drive frequency, x(t) = Re(Z e^{i w t}), from a
 // least-squares fit of [1, cos, sin (fast), cos, sin (slow)], and the phase sigma of each.

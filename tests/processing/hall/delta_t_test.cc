@@ -258,6 +258,28 @@ TEST(DeltaTCalibration, AShortRecordingDoesNotReportAWrongDt) {
   EXPECT_FALSE(e.identified());
 }
 
+// Issue 15's few-pose session on the synthetic rig: 4 s / 2 s recordings at 1.5 uT, n poses,
+// linear and sine models; the drives' phases on or off (never determined).
+struct FewPoses {
+  FewPoses(int n, int seed, bool drive_phases) {
+    rig.noise_uT = 1.5;
+    actual = rig.Record(4, true, 100 + seed);
+    background = rig.Record(2, false, 200 + seed);
+    HallCalibrationOptions o;
+    o.repetitions = 10;
+    o.models = {HallModelKind::kLinear, HallModelKind::kSine};
+    if (!drive_phases) o.drive_phase.min_phase_snr = 1e12;
+    in = MakeInput(rig, actual, background, rig.Poses(n, 0.03, 0.01, 300 + seed));
+    r = CalibrateHall(in, o);
+  }
+  SyntheticHallRig rig;
+  dataset::HallRecording actual, background;
+  HallCalibrationInput in;  // points into actual and background: not copyable
+  HallCalibrationResult r;
+  FewPoses(const FewPoses&) = delete;
+  FewPoses& operator=(const FewPoses&) = delete;
+};
+
 // Few poses (issue 15's 8-pose scene): the sine model is chosen and no field model is steady
 // enough to bracket dt. The sine model's valleys every half fast period fit alike, and over the
 // whole window its dt lands on an alias (-5.2 ms for a delay of 0.6 ms at 86 Hz); its final fit
@@ -266,17 +288,10 @@ TEST(DeltaTCalibration, AShortRecordingDoesNotReportAWrongDt) {
 TEST(DeltaTCalibration, TheSineModelsDtIsKeptInTheFieldModelsValley) {
   for (auto [n, seed] : {std::pair{8, 1}, std::pair{12, 1}}) {
     SCOPED_TRACE(std::to_string(n) + " poses, seed " + std::to_string(seed));
-    SyntheticHallRig rig;
-    rig.noise_uT = 1.5;
-    const auto actual = rig.Record(4, true, 100 + seed);
-    const auto background = rig.Record(2, false, 200 + seed);
-    HallCalibrationOptions o;
-    o.repetitions = 10;
-    o.models = {HallModelKind::kLinear, HallModelKind::kSine};
-    o.drive_phase.min_phase_snr = 1e12;  // the drives' phases never bracket (next test)
-    const HallCalibrationInput in =
-        MakeInput(rig, actual, background, rig.Poses(n, 0.03, 0.01, 300 + seed));
-    const HallCalibrationResult r = CalibrateHall(in, o);
+    const FewPoses s(n, seed, /*drive_phases=*/false);  // the phases never bracket (next test)
+    const SyntheticHallRig& rig = s.rig;
+    const HallCalibrationInput& in = s.in;
+    const HallCalibrationResult& r = s.r;
     EXPECT_FALSE(r.drive_phase.determined);
     EXPECT_EQ(r.bracket, DeltaTBracket::kNone);
     ASSERT_EQ(r.best, HallModelKind::kSine);
@@ -306,15 +321,9 @@ TEST(DeltaTCalibration, TheDrivesPhasesBracketDtWhenNoFieldModelIsSteady) {
   int by_phases = 0;
   for (auto [n, seed] : {std::pair{8, 1}, std::pair{12, 1}, std::pair{8, 2}, std::pair{8, 3}}) {
     SCOPED_TRACE(std::to_string(n) + " poses, seed " + std::to_string(seed));
-    SyntheticHallRig rig;
-    rig.noise_uT = 1.5;
-    const auto actual = rig.Record(4, true, 100 + seed);
-    const auto background = rig.Record(2, false, 200 + seed);
-    HallCalibrationOptions o;
-    o.repetitions = 10;
-    o.models = {HallModelKind::kLinear, HallModelKind::kSine};
-    const HallCalibrationResult r =
-        CalibrateHall(MakeInput(rig, actual, background, rig.Poses(n, 0.03, 0.01, 300 + seed)), o);
+    const FewPoses s(n, seed, /*drive_phases=*/true);
+    const SyntheticHallRig& rig = s.rig;
+    const HallCalibrationResult& r = s.r;
     ASSERT_TRUE(r.drive_phase.determined) << r.drive_phase.reason;
     EXPECT_NEAR(r.drive_phase.delta_t_s, rig.delay_s, 0.05e-3);
     EXPECT_LT(std::abs(r.drive_phase.delta_t_s - rig.delay_s), 4 * r.drive_phase.sigma_s + 2e-6);
