@@ -14,7 +14,8 @@
 // most classic_max_corners), then SB on a 2x upscaled copy (squares below ~12 px; small images
 // only). Every candidate grid must pass a
 // geometric check (corners refined within a fraction of a square of where the detector put them, a
-// locally consistent grid) before it is accepted; the method that found the board is recorded.
+// locally consistent grid; a rough grid, at most a square off, is judged after its refinement)
+// before it is accepted; the method that found the board is recorded.
 
 #include <Eigen/Core>
 #include <opencv2/core.hpp>
@@ -94,7 +95,7 @@ struct BoardAttempt {
   double scale = 1.0;     // image scale the detector ran on
   bool found = false;     // the detector returned a grid
   bool accepted = false;  // and it passed the geometric check
-  std::string note;       // why a found grid was refused
+  std::string note;       // why a found grid was refused (or that it was accepted as rough)
   cv::Rect region;        // the hint's region it ran on (empty: the whole image)
 };
 
