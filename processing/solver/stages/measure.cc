@@ -350,6 +350,31 @@ void RefineDotsOnBackgrounds(const std::vector<std::vector<size_t>>& groups,
 
 }  // namespace
 
+// Step 1: the plate does not move within a sliding pose, so a frame of a pose whose sliding
+// board was not found (a laser spot on a square corner can break the detectors' grid) takes the
+// board of the pose's first frame that shows it, before the dot passes: its dots are then read
+// on the plate and refitted over the pose's other images like any other frame's. The borrowed
+// corners are not measurements of this image (board_from; MeasureStep1Frames fits them once).
+void BorrowSlidingBoards(const std::vector<std::vector<size_t>>& step1_groups,
+                         const std::vector<std::vector<vision::BoardSize>>& sizes,
+                         const PipelineOptions& o, std::vector<ImageMeasurement>* measured) {
+  for (const auto& group : step1_groups) {
+    const auto source = std::find_if(group.begin(), group.end(), [&](size_t i) {
+      return (*measured)[i].boards.size() == 2 && (*measured)[i].boards[1].has_value();
+    });
+    if (source == group.end()) continue;
+    for (size_t i : group) {
+      ImageMeasurement& m = (*measured)[i];
+      if (m.boards.size() != 2 || m.boards[1]) continue;
+      m.boards[1] = (*measured)[*source].boards[1];
+      m.board_from.assign(2, -1);
+      m.board_from[1] = static_cast<int>(*source);
+      RegionRejections region;
+      m.dots_on_plane = DotsOnHostPlane(m.dots, m, sizes[i], o, &region).size();
+    }
+  }
+}
+
 // The frame's dots on its board's plane, and the blobs refused there, into its detection row.
 void RecordDots(const std::vector<vision::Dot>& on_plane, const std::vector<vision::Dot>& all,
                 const RegionRejections& region, FrameDetection* fd) {
@@ -566,6 +591,9 @@ RecordingMeasurement MeasureRecording(const dataset::Recording& rec, const Image
         std::sort(l.begin(), l.end());
         light.push_back(std::move(l));
       }
+      BorrowSlidingBoards(
+          std::vector<std::vector<size_t>>(static_groups.begin(), static_groups.end() - 1), asks, o,
+          &measured);
       std::vector<char> every_view(static_groups.size(), 0);
       every_view.back() = 1;  // step 2
       DropStaticBlobs(static_groups, asks, light, every_view, o, &measured);
@@ -602,7 +630,7 @@ RecordingMeasurement MeasureRecording(const dataset::Recording& rec, const Image
     for (size_t b = 0; b < measured[i].boards.size(); ++b) {
       FrameDetection::Board board;
       board.name = names[b];
-      if (const auto& found = measured[i].boards[b]) {
+      if (const auto& found = measured[i].boards[b]; found && !measured[i].Borrowed(b)) {
         board.found = true;
         board.method = vision::ToString(found->method);
         board.square_px = found->square_px;

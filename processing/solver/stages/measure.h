@@ -31,6 +31,10 @@ struct ImageMeasurement {
   int second_pass_on_plane = -1;  // what the second pass found there (-1: not run)
   cv::Size image_size;
   int channels = 1, depth_bits = 8;
+  // Per board asked for: -1 when found in this image, else the index (in the recording's image
+  // list) of the image of the same static scene it was taken from (BorrowSlidingBoards).
+  std::vector<int> board_from;
+  bool Borrowed(size_t board) const { return board < board_from.size() && board_from[board] >= 0; }
 };
 // `hints` (optional): per board asked for, where another image of the view found it.
 using BoardHints = std::vector<std::optional<vision::BoardHint>>;
@@ -48,6 +52,15 @@ ImageMeasurement MeasureFrame(const cv::Mat& image, const std::vector<vision::Bo
 // The hints a measured image gives the other images of its view (one per board asked for; none
 // for a board it did not show).
 BoardHints HintsFrom(const ImageMeasurement& m, const vision::CheckerboardOptions& options);
+
+// Step 1: the plate does not move within a sliding pose, so a frame of a pose whose sliding
+// board was not found (a laser spot on a square corner can break the detectors' grid) takes the
+// board of the pose's first frame that shows it (`step1_groups`: the measured images' indices
+// per pose; `sizes`: the boards asked for per image), sets board_from and recounts its dots on
+// the plate. MeasureRecording does this before its dot passes.
+void BorrowSlidingBoards(const std::vector<std::vector<size_t>>& step1_groups,
+                         const std::vector<std::vector<vision::BoardSize>>& sizes,
+                         const PipelineOptions& o, std::vector<ImageMeasurement>* measured);
 
 // Why blobs of a frame were not taken as its laser dots (results/detections.csv).
 struct RegionRejections {

@@ -36,6 +36,8 @@ Step1Frames MeasureStep1Frames(const dataset::Recording& rec,
   const vision::BoardSize sliding_size{rec.sliding_board.cols, rec.sliding_board.rows};
   size_t next_measured = 0;
   std::map<int, int> pose_remap;
+  std::set<int> poses_with_corners;  // poses (renumbered) whose corners are in `corners`
+  std::map<int, size_t> lender;      // pose (renumbered) -> the frame a board was borrowed from
   size_t c1_corners = 0;
   for (const auto& f : rec.step1) {
     FrameDetection& fd = det[next_measured];
@@ -43,9 +45,19 @@ Step1Frames MeasureStep1Frames(const dataset::Recording& rec,
     const auto& boards = m.boards;
     fd.dots_expected = static_cast<int>(f.beams.size());
     if (!boards[1]) {
-      out.log.dropped.push_back(
-          {f.file, "sliding board (" + SizeText(rec.sliding_board) + ") not found"});
+      out.log.dropped.push_back({f.file, "sliding board (" + SizeText(rec.sliding_board) +
+                                             ") not found in this or any other frame of pose " +
+                                             std::to_string(f.pose)});
       continue;
+    }
+    const bool borrowed = m.Borrowed(1);
+    if (borrowed) {
+      const std::string& from = rec.step1[static_cast<size_t>(m.board_from[1])].file;
+      out.log.notes.push_back(f.file + ": sliding board not found; the plate of " + from +
+                              " (same pose " + std::to_string(f.pose) + ")");
+      fd.partial = true;
+      fd.note = "sliding board not found: the plate of " + from + " (same pose)" +
+                (fd.note.empty() ? "" : "; " + fd.note);
     }
     RegionRejections region;
     auto dots = DotsOnBoard(m.dots, *boards[1], sliding_size, o.step1_dot_margin_squares, o,
@@ -89,8 +101,9 @@ Step1Frames MeasureStep1Frames(const dataset::Recording& rec,
       out.log.dropped.push_back({f.file, "PnP of the sliding board failed"});
       continue;
     }
-    fd.boards[1].corner_rms_px =
-        ReprojectionRms(rec.camera, *c1s, sliding_pts, boards[1]->corners_px);
+    if (!borrowed)
+      fd.boards[1].corner_rms_px =
+          ReprojectionRms(rec.camera, *c1s, sliding_pts, boards[1]->corners_px);
     if (boards[0]) {
       if (auto t = SolvePlanarPnP(rec.camera, world_pts, boards[0]->corners_px))
         fd.boards[0].corner_rms_px =
@@ -107,11 +120,17 @@ Step1Frames MeasureStep1Frames(const dataset::Recording& rec,
       out.log.notes.push_back(f.file +
                               ": world board not found; frame used for the sliding board only");
       fd.partial = true;
-      fd.note = "world board not found: used for the sliding board only";
+      fd.note = (fd.note.empty() ? "" : fd.note + "; ") +
+                "world board not found: used for the sliding board only";
     }
     const int pose = pose_remap.emplace(f.pose, static_cast<int>(pose_remap.size())).first->second;
-    corners.push_back({BoardView::kC1Sliding, pose, sliding_pts, boards[1]->corners_px});
-    corners_clear.push_back(CornersClearOfDots(*boards[1], m.dots));
+    if (!borrowed) {
+      corners.push_back({BoardView::kC1Sliding, pose, sliding_pts, boards[1]->corners_px});
+      corners_clear.push_back(CornersClearOfDots(*boards[1], m.dots));
+      poses_with_corners.insert(pose);
+    } else {
+      lender.emplace(pose, static_cast<size_t>(m.board_from[1]));
+    }
     Step1View s;
     s.file = f.file;
     s.pose = pose;
@@ -127,6 +146,14 @@ Step1Frames MeasureStep1Frames(const dataset::Recording& rec,
     s.c1_from_sliding = *c1s;
     s1.push_back(std::move(s));
   }
+  // A borrowed board whose own frame was dropped (no dot in an identification frame): its
+  // corners still give the pose, once.
+  for (const auto& [pose, i] : lender)
+    if (!poses_with_corners.count(pose)) {
+      corners.push_back(
+          {BoardView::kC1Sliding, pose, sliding_pts, measured[i].boards[1]->corners_px});
+      corners_clear.push_back(CornersClearOfDots(*measured[i].boards[1], measured[i].dots));
+    }
   if (!c1_from_world) {
     out.log.error = "step1: the world board (" + SizeText(rec.world_board) +
                     ") was not found in any step 1 image";

@@ -13,6 +13,7 @@
 #include "processing/geometry/mirror_frame.h"
 #include "processing/solver/stages/estimate.h"
 #include "processing/solver/stages/exposures.h"
+#include "processing/solver/stages/measure.h"
 #include "processing/solver/stages/mirror0.h"
 #include "processing/solver/stages/step1_beams.h"
 #include "processing/solver/stages/step2_groups.h"
@@ -214,6 +215,98 @@ TEST(Step1Stage, LabelsFramesWithSurplusCandidatesOrAMissingDot) {
   EXPECT_EQ(out.label[5], missing_truth);
   EXPECT_EQ(out.sliding_dots.size(), 11u);
   for (int b = 0; b < 3; ++b) EXPECT_LT((out.beams[b].m - s.beams[b].m).norm(), 1e-9) << b;
+}
+
+// Measured step 1 frames built from exact projections: a frame whose sliding board was not
+// found (a laser spot on a square corner can break the detectors' grid) reads its dot on the
+// plate where another frame of its pose found the board; a frame whose pose has no board in
+// any frame is dropped and says so. The borrowed corners enter the fit once.
+TEST(Step1Stage, AFrameWithoutItsSlidingBoardUsesItsPosesBoard) {
+  dataset::Recording rec;
+  rec.camera.width = 1280;
+  rec.camera.height = 960;
+  rec.camera.fx = rec.camera.fy = 1000;
+  rec.camera.cx = 640;
+  rec.camera.cy = 480;
+  rec.world_board = {7, 5, 20};
+  rec.sliding_board = {5, 4, 10};
+  rec.beams = {{1, dataset::BeamRole::kEstimate}, {2, dataset::BeamRole::kEstimate}};
+  rec.step1 = {{"step1/0000.png", 0, {1}},
+               {"step1/0001.png", 0, {2}},
+               {"step1/0002.png", 1, {1}},
+               {"step1/0003.png", 1, {2}},
+               {"step1/0004.png", 2, {1}}};
+  const Rigid3d c1_from_world(Eigen::Matrix3d::Identity(), Eigen::Vector3d(-60, -40, 600));
+  const Rigid3d c1_from_pose[3] = {
+      {Eigen::Matrix3d(Eigen::AngleAxisd(0.1, Eigen::Vector3d::UnitY())), {120, -20, 500}},
+      {Eigen::Matrix3d(Eigen::AngleAxisd(-0.1, Eigen::Vector3d::UnitY())), {125, -15, 470}},
+      {Rigid3d(Eigen::Matrix3d::Identity(), {120, -20, 440})}};
+  auto board = [&](const dataset::BoardSpec& spec, const Rigid3d& c1_from_board) {
+    vision::CheckerboardDetection d;
+    for (int r = 0; r < spec.rows; ++r)
+      for (int c = 0; c < spec.cols; ++c)
+        d.corners_px.push_back(*rec.camera.Project(
+            c1_from_board * Eigen::Vector3d(c * spec.square_mm, r * spec.square_mm, 0)));
+    d.square_px = 20;
+    d.refine_half_window_px = 5;
+    return d;
+  };
+  // Each frame's dot at the centre of a square of the plate: (1.5, 1.5) or (2.5, 1.5) squares.
+  auto dot_at = [&](const Rigid3d& c1_from_board, double c, double r) {
+    vision::Dot d;
+    d.px = *rec.camera.Project(c1_from_board * Eigen::Vector3d(10 * c, 10 * r, 0));
+    d.cov_px2 = 0.01 * Eigen::Matrix2d::Identity();
+    d.num_pixels = 30;
+    d.fitted = true;
+    return d;
+  };
+  std::vector<ImageMeasurement> measured(rec.step1.size());
+  std::vector<FrameDetection> det(rec.step1.size());
+  const double dot_col[5] = {1.5, 2.5, 1.5, 2.5, 1.5};
+  for (size_t i = 0; i < rec.step1.size(); ++i) {
+    const Rigid3d& pose = c1_from_pose[rec.step1[i].pose];
+    measured[i].boards = {board(rec.world_board, c1_from_world), std::nullopt};
+    if (i != 1 && i != 4) measured[i].boards[1] = board(rec.sliding_board, pose);
+    measured[i].dots = {dot_at(pose, dot_col[i], 1.5)};
+    measured[i].image_size = cv::Size(1280, 960);
+    det[i].file = rec.step1[i].file;
+    det[i].boards.resize(2);
+  }
+  // The measure stage lends frame 1 the board of frame 0 (its pose's first frame that shows
+  // it) and counts its dot on the plate; frame 4's pose has no board to lend.
+  const vision::BoardSize world_size{7, 5}, sliding_size{5, 4};
+  BorrowSlidingBoards({{0, 1}, {2, 3}, {4}},
+                      std::vector<std::vector<vision::BoardSize>>(5, {world_size, sliding_size}),
+                      {}, &measured);
+  ASSERT_TRUE(measured[1].boards[1].has_value());
+  EXPECT_TRUE(measured[1].Borrowed(1));
+  EXPECT_EQ(measured[1].board_from[1], 0);
+  EXPECT_EQ(measured[1].dots_on_plane, 1u);
+  EXPECT_EQ(measured[1].boards[1]->corners_px, measured[0].boards[1]->corners_px);
+  EXPECT_FALSE(measured[0].Borrowed(1) || measured[2].Borrowed(1) || measured[3].Borrowed(1));
+  EXPECT_FALSE(measured[4].boards[1].has_value());
+  const Step1Frames out = MeasureStep1Frames(rec, measured, det, MakeBeamTable(rec.beams), {});
+  ASSERT_TRUE(out.log.error.empty()) << out.log.error;
+  ASSERT_EQ(out.views.size(), 4u);
+  EXPECT_EQ(out.num_poses, 2);
+  const Step1View& borrowed = out.views[1];
+  EXPECT_EQ(borrowed.file, "step1/0001.png");
+  EXPECT_EQ(borrowed.pose, out.views[0].pose);
+  ASSERT_EQ(borrowed.dots_in_world.size(), 1u);
+  const Eigen::Vector3d truth =
+      c1_from_world.Inverse() * (c1_from_pose[0] * Eigen::Vector3d(25, 15, 0));
+  EXPECT_LT((borrowed.dots_in_world[0] - truth).norm(), 1e-6);
+  EXPECT_TRUE(out.detections[1].partial);
+  EXPECT_NE(out.detections[1].note.find("step1/0000.png"), std::string::npos)
+      << out.detections[1].note;
+  int sliding_sets = 0;
+  for (const auto& c : out.corners) sliding_sets += c.view == BoardView::kC1Sliding ? 1 : 0;
+  EXPECT_EQ(sliding_sets, 3);  // frames 0, 2 and 3: none for the borrowing frame
+  ASSERT_EQ(out.log.dropped.size(), 1u);
+  EXPECT_EQ(out.log.dropped[0].file, "step1/0004.png");
+  EXPECT_NE(out.log.dropped[0].reason.find("in this or any other frame of pose 2"),
+            std::string::npos)
+      << out.log.dropped[0].reason;
 }
 
 TEST(StageHelpers, BestInjectionLeavesCostlyItemsWithoutASlot) {
