@@ -366,6 +366,13 @@ void BorrowSlidingBoards(const std::vector<std::vector<size_t>>& step1_groups,
     for (size_t i : group) {
       ImageMeasurement& m = (*measured)[i];
       if (m.boards.size() != 2 || m.boards[1]) continue;
+      // A frame without the contrast a board needs (black, blank, saturated) shows no plate.
+      if (m.board_attempts.size() == 2 &&
+          std::any_of(m.board_attempts[1].begin(), m.board_attempts[1].end(),
+                      [](const vision::BoardAttempt& a) {
+                        return a.method == vision::BoardMethod::kContrastCheck;
+                      }))
+        continue;
       m.boards[1] = (*measured)[*source].boards[1];
       m.board_from.assign(2, -1);
       m.board_from[1] = static_cast<int>(*source);

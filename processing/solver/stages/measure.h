@@ -57,7 +57,8 @@ BoardHints HintsFrom(const ImageMeasurement& m, const vision::CheckerboardOption
 // board was not found (a laser spot on a square corner can break the detectors' grid) takes the
 // board of the pose's first frame that shows it (`step1_groups`: the measured images' indices
 // per pose; `sizes`: the boards asked for per image), sets board_from and recounts its dots on
-// the plate. MeasureRecording does this before its dot passes.
+// the plate; not a frame that failed the contrast check (a black, blank or saturated frame
+// shows no plate). MeasureRecording does this before its dot passes.
 void BorrowSlidingBoards(const std::vector<std::vector<size_t>>& step1_groups,
                          const std::vector<std::vector<vision::BoardSize>>& sizes,
                          const PipelineOptions& o, std::vector<ImageMeasurement>* measured);

@@ -34,6 +34,9 @@ Step1Frames MeasureStep1Frames(const dataset::Recording& rec,
   const auto sliding_pts = BoardPoints(rec.sliding_board);
   const vision::BoardSize world_size{rec.world_board.cols, rec.world_board.rows};
   const vision::BoardSize sliding_size{rec.sliding_board.cols, rec.sliding_board.rows};
+  std::set<int> poses_shown;  // session poses whose sliding board some frame shows
+  for (size_t i = 0; i < rec.step1.size(); ++i)
+    if (measured[i].boards[1]) poses_shown.insert(rec.step1[i].pose);
   size_t next_measured = 0;
   std::map<int, int> pose_remap;
   std::set<int> poses_with_corners;  // poses (renumbered) whose corners are in `corners`
@@ -45,9 +48,11 @@ Step1Frames MeasureStep1Frames(const dataset::Recording& rec,
     const auto& boards = m.boards;
     fd.dots_expected = static_cast<int>(f.beams.size());
     if (!boards[1]) {
-      out.log.dropped.push_back({f.file, "sliding board (" + SizeText(rec.sliding_board) +
-                                             ") not found in this or any other frame of pose " +
-                                             std::to_string(f.pose)});
+      out.log.dropped.push_back(
+          {f.file, "sliding board (" + SizeText(rec.sliding_board) + ") not found" +
+                       (poses_shown.count(f.pose)
+                            ? std::string()
+                            : " in this or any other frame of pose " + std::to_string(f.pose))});
       continue;
     }
     const bool borrowed = m.Borrowed(1);

@@ -285,6 +285,18 @@ TEST(Step1Stage, AFrameWithoutItsSlidingBoardUsesItsPosesBoard) {
   EXPECT_EQ(measured[1].boards[1]->corners_px, measured[0].boards[1]->corners_px);
   EXPECT_FALSE(measured[0].Borrowed(1) || measured[2].Borrowed(1) || measured[3].Borrowed(1));
   EXPECT_FALSE(measured[4].boards[1].has_value());
+  // A frame that failed the contrast check (black, blank, saturated) shows no plate: no loan.
+  {
+    std::vector<ImageMeasurement> black = {measured[0], measured[1]};
+    black[1].boards[1].reset();
+    black[1].board_from.clear();
+    black[1].board_attempts = {{},
+                               {{vision::BoardMethod::kContrastCheck, 0.25, false, false, "", {}}}};
+    BorrowSlidingBoards({{0, 1}},
+                        std::vector<std::vector<vision::BoardSize>>(2, {world_size, sliding_size}),
+                        {}, &black);
+    EXPECT_FALSE(black[1].boards[1].has_value());
+  }
   const Step1Frames out = MeasureStep1Frames(rec, measured, det, MakeBeamTable(rec.beams), {});
   ASSERT_TRUE(out.log.error.empty()) << out.log.error;
   ASSERT_EQ(out.views.size(), 4u);
@@ -304,7 +316,7 @@ TEST(Step1Stage, AFrameWithoutItsSlidingBoardUsesItsPosesBoard) {
   EXPECT_EQ(sliding_sets, 3);  // frames 0, 2 and 3: none for the borrowing frame
   ASSERT_EQ(out.log.dropped.size(), 1u);
   EXPECT_EQ(out.log.dropped[0].file, "step1/0004.png");
-  EXPECT_NE(out.log.dropped[0].reason.find("in this or any other frame of pose 2"),
+  EXPECT_NE(out.log.dropped[0].reason.find("not found in this or any other frame of pose 2"),
             std::string::npos)
       << out.log.dropped[0].reason;
 }
