@@ -65,7 +65,7 @@ camera:
   c2_target_mm: [{aimx:.0f}, {aimy:.0f}, 0]
 render:
   dot_sigma_mm: {r.uniform(0.3, 1.2):.2f}
-  dot_peak: {r.choice([0.3, 0.6, 1.0, 1.5, 2.0])}
+  dot_peak: {r.choice([0.3, 0.6, 1.0, 2.0, 1.5])}
   noise_sigma: {r.uniform(0.002, 0.01):.4f}
   colour: {r.choice(['true', 'false'])}
 step1:
