@@ -74,8 +74,6 @@ std::string FormatMs(double s) {
 
 namespace {
 
-std::string Ms(double s) { return FormatMs(s); }
-
 double StdDev(const std::vector<double>& v) {
   if (v.empty()) return std::numeric_limits<double>::quiet_NaN();
   double mean = 0, ss = 0;
@@ -144,37 +142,39 @@ DeltaTEstimate IdentifyDeltaT(const DeltaTEvidence& e, const DeltaTIdentificatio
     r.reason =
         std::string(outside ? "the cost is lowest beyond the search window's bound, at "
                             : "the cost falls towards the search window's bound, minimum at ") +
-        Ms(r.profile_min_s) + " (window " + Ms(r.search_min_s) + " .. " + Ms(r.search_max_s) +
-        "): the true dt may lie beyond it";
+        FormatMs(r.profile_min_s) + " (window " + FormatMs(r.search_min_s) + " .. " +
+        FormatMs(r.search_max_s) + "): the true dt may lie beyond it";
     return r;
   }
   if (e.final_delta_t_s <= e.bracket_min_s + edge || e.final_delta_t_s >= e.bracket_max_s - edge) {
     r.status = DeltaTStatus::kAtBound;
-    r.reason = "the final fit's dt " + Ms(e.final_delta_t_s) + " lies at its bracket's bound (" +
-               Ms(e.bracket_min_s) + " .. " + Ms(e.bracket_max_s) + ")";
+    r.reason = "the final fit's dt " + FormatMs(e.final_delta_t_s) +
+               " lies at its bracket's bound (" + FormatMs(e.bracket_min_s) + " .. " +
+               FormatMs(e.bracket_max_s) + ")";
     return r;
   }
   if (std::abs(e.final_delta_t_s - r.profile_min_s) > 2 * step) {
     r.status = DeltaTStatus::kAmbiguous;
-    r.reason = "the final fit's dt " + Ms(e.final_delta_t_s) + " (bracket " + Ms(e.bracket_min_s) +
-               " .. " + Ms(e.bracket_max_s) + ") is not the whole window's minimum at " +
-               Ms(r.profile_min_s);
+    r.reason = "the final fit's dt " + FormatMs(e.final_delta_t_s) + " (bracket " +
+               FormatMs(e.bracket_min_s) + " .. " + FormatMs(e.bracket_max_s) +
+               ") is not the whole window's minimum at " + FormatMs(r.profile_min_s);
     return r;
   }
   // 3. The splits agree.
   if (r.splits_agreeing < o.min_split_agreement * r.splits) {
     r.status = DeltaTStatus::kSplitsDisagree;
     r.reason = std::to_string(r.splits - r.splits_agreeing) + " of " + std::to_string(r.splits) +
-               " train/test splits find dt more than " + Ms(valley) + " from the minimum at " +
-               Ms(r.profile_min_s) + " (spread " + Ms(StdDev(e.split_delta_t_s)) +
+               " train/test splits find dt more than " + FormatMs(valley) +
+               " from the minimum at " + FormatMs(r.profile_min_s) + " (spread " +
+               FormatMs(StdDev(e.split_delta_t_s)) +
                "): the data do not choose between the fast drive's valleys";
     return r;
   }
   // 4. The splits agree closely.
   if (!(r.sigma_s <= o.max_sigma_s)) {
     r.status = DeltaTStatus::kImprecise;
-    r.reason = "the train/test splits' dt scatters by " + Ms(r.sigma_s) + " (at most " +
-               Ms(o.max_sigma_s) + "): too few poses or readings to pin dt down";
+    r.reason = "the train/test splits' dt scatters by " + FormatMs(r.sigma_s) + " (at most " +
+               FormatMs(o.max_sigma_s) + "): too few poses or readings to pin dt down";
     return r;
   }
   // 5. No other valley nearly as deep.
@@ -183,8 +183,8 @@ DeltaTEstimate IdentifyDeltaT(const DeltaTEvidence& e, const DeltaTIdentificatio
     std::snprintf(buf, sizeof buf, "%.1f", r.separation);
     std::snprintf(need, sizeof need, "%g", o.min_separation);
     r.status = DeltaTStatus::kAmbiguous;
-    r.reason = "another minimum at " + Ms(r.runner_up_s) + " costs only " + buf +
-               " residual variances more than the one at " + Ms(r.profile_min_s) + " (need " +
+    r.reason = "another minimum at " + FormatMs(r.runner_up_s) + " costs only " + buf +
+               " residual variances more than the one at " + FormatMs(r.profile_min_s) + " (need " +
                need + "): too few poses or readings to tell the fast drive's valleys apart";
     return r;
   }

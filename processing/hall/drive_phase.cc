@@ -33,8 +33,6 @@ namespace {
 
 using Complex = std::complex<double>;
 
-std::string Ms(double s) { return FormatMs(s); }  // delta_t.h
-
 // The pose output's complex amplitude at each drive frequency, x(t) = Re(Z e^{i w t}), from a
 // least-squares fit of [1, cos, sin (fast), cos, sin (slow)], and the phase sigma of each.
 struct PoseFit {
@@ -179,7 +177,7 @@ DrivePhaseEstimate EstimateDeltaTFromDrivePhases(const std::vector<PoseSample>& 
   }
   const double quarter_fast = 0.25 / f[0];
   if (2 * quarter_fast > 0.5 / f[1] || 0.25 / f[1] < 0.5 * (window_max_s - window_min_s)) {
-    r.reason = "the slow drive's half period (" + Ms(0.5 / f[1]) +
+    r.reason = "the slow drive's half period (" + FormatMs(0.5 / f[1]) +
                ") does not exceed the fast drive's and the search window";
     return r;
   }
@@ -194,21 +192,23 @@ DrivePhaseEstimate EstimateDeltaTFromDrivePhases(const std::vector<PoseSample>& 
   r.disagreement_sigmas = std::abs(d_best) / combined;
   r.separation = (d_next * d_next - d_best * d_best) / (combined * combined);
   if (!(r.disagreement_sigmas <= options.max_disagreement_sigmas)) {
-    r.reason = "the drives' phases disagree: slow " + Ms(r.slow.delta_t_s) + " +- " +
-               Ms(r.slow.sigma_s) + ", the nearest fast valley " + Ms(r.delta_t_s);
+    r.reason = "the drives' phases disagree: slow " + FormatMs(r.slow.delta_t_s) + " +- " +
+               FormatMs(r.slow.sigma_s) + ", the nearest fast valley " + FormatMs(r.delta_t_s);
     return r;
   }
   if (r.delta_t_s < window_min_s || r.delta_t_s > window_max_s) {
-    r.reason = "dt " + Ms(r.delta_t_s) + " lies outside the search window " + Ms(window_min_s) +
-               " .. " + Ms(window_max_s);
+    r.reason = "dt " + FormatMs(r.delta_t_s) + " lies outside the search window " +
+               FormatMs(window_min_s) + " .. " + FormatMs(window_max_s);
     return r;
   }
   r.chooses_valley = r.separation >= options.min_valley_separation;
   if (!(r.separation >= options.min_separation)) {
-    r.reason = "the slow drive's phase (dt " + Ms(r.slow.delta_t_s) + " +- " + Ms(r.slow.sigma_s) +
-               ") does not choose among the fast drive's valleys every " + Ms(half_fast) + " (" +
-               Ms(r.delta_t_s) + " or " + Ms(r.delta_t_s - std::copysign(half_fast, d_best)) +
-               ", the other " + Fixed1(r.separation) + " variances less likely, at least " +
+    r.reason = "the slow drive's phase (dt " + FormatMs(r.slow.delta_t_s) + " +- " +
+               FormatMs(r.slow.sigma_s) +
+               ") does not choose among the fast drive's valleys every " + FormatMs(half_fast) +
+               " (" + FormatMs(r.delta_t_s) + " or " +
+               FormatMs(r.delta_t_s - std::copysign(half_fast, d_best)) + ", the other " +
+               Fixed1(r.separation) + " variances less likely, at least " +
                Fixed1(options.min_separation) + " needed)";
     return r;
   }
