@@ -146,7 +146,8 @@ std::vector<Eigen::Vector2d> CanonicalCornerOrder(const std::vector<Eigen::Vecto
 namespace {
 
 // Median distance between neighbouring corners of a row-major rows x cols grid.
-double MedianSpacing(const std::vector<cv::Point2f>& g, BoardSize size) {
+// Distances between neighbouring corners along rows and columns.
+std::vector<double> NeighbourDistances(const std::vector<cv::Point2f>& g, BoardSize size) {
   std::vector<double> d;
   for (int r = 0; r < size.rows; ++r)
     for (int c = 0; c < size.cols; ++c) {
@@ -154,6 +155,11 @@ double MedianSpacing(const std::vector<cv::Point2f>& g, BoardSize size) {
       if (c + 1 < size.cols) d.push_back(cv::norm(g[r * size.cols + c + 1] - p));
       if (r + 1 < size.rows) d.push_back(cv::norm(g[(r + 1) * size.cols + c] - p));
     }
+  return d;
+}
+
+double MedianSpacing(const std::vector<cv::Point2f>& g, BoardSize size) {
+  std::vector<double> d = NeighbourDistances(g, size);
   std::nth_element(d.begin(), d.begin() + d.size() / 2, d.end());
   return d[d.size() / 2];
 }
@@ -186,15 +192,8 @@ double GridIrregularity(const std::vector<cv::Point2f>& g, BoardSize size) {
 // (the next corner).
 double RefineHalfWindow(const std::vector<cv::Point2f>& g, BoardSize size,
                         const CheckerboardOptions& options) {
-  double min_spacing = 1e9;
-  for (int r = 0; r < size.rows; ++r)
-    for (int c = 0; c < size.cols; ++c) {
-      const cv::Point2f& p = g[r * size.cols + c];
-      if (c + 1 < size.cols)
-        min_spacing = std::min<double>(min_spacing, cv::norm(g[r * size.cols + c + 1] - p));
-      if (r + 1 < size.rows)
-        min_spacing = std::min<double>(min_spacing, cv::norm(g[(r + 1) * size.cols + c] - p));
-    }
+  const std::vector<double> d = NeighbourDistances(g, size);
+  const double min_spacing = *std::min_element(d.begin(), d.end());
   return std::min(
       std::max(min_spacing * options.refine_window_squares, options.refine_window_min_px),
       0.5 * min_spacing);
