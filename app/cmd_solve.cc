@@ -2,6 +2,7 @@
 // DIR/results/ (mirror_planes.csv, beams.csv, validation.csv, summary.json "mirror_poses", and the
 // native validation_detail.csv). `msmcal experiment table1`: the paper's Table I on the simulated
 // rig (3 spanning angles x 2 scan patterns, baseline vs proposed).
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <cmath>
@@ -56,7 +57,7 @@ void RunExplain(const SolveArgs& args, const solver::PipelineOptions& options) {
   // The frame's static scene (the images its background is measured in): step 1 the same
   // sliding pose, step 2 every frame.
   std::vector<std::string> scene;
-  std::string view_first;  // the first frame of its view (board hints)
+  std::vector<std::string> view_files;  // the frames of its view, in order (board hints)
   for (const auto& f : rec.step1)
     if (f.file == args.explain) {
       for (const auto& g : rec.step1)
@@ -64,7 +65,7 @@ void RunExplain(const SolveArgs& args, const solver::PipelineOptions& options) {
       expected = static_cast<int>(f.beams.size());
       asks = {world, sliding};
       names = {"world", "sliding"};
-      view_first = rec.step1.front().file;
+      for (const auto& g : rec.step1) view_files.push_back(g.file);
       what = "step 1, sliding pose " + std::to_string(f.pose) + ", " +
              std::to_string(f.beams.size()) + " beam(s) unblocked: expects " +
              std::to_string(f.beams.size()) + " dot(s) on the sliding plate";
@@ -75,7 +76,7 @@ void RunExplain(const SolveArgs& args, const solver::PipelineOptions& options) {
         if (g.file != f.file) scene.push_back(g.file);
       asks = {world};
       names = {"world"};
-      view_first = rec.step2.front().file;
+      for (const auto& g : rec.step2) view_files.push_back(g.file);
       const size_t triggers = f.kind == dataset::Step2Kind::kNeutral ? 1 : f.triggers.size();
       expected = static_cast<int>(triggers * f.beams.size());
       what = std::string("step 2, ") + dataset::ToString(f.kind) + ", " + std::to_string(triggers) +
@@ -104,24 +105,43 @@ void RunExplain(const SolveArgs& args, const solver::PipelineOptions& options) {
           parity == 0 ? "even" : "odd",
           options.dots.native_green_only ? "" : " only with dots.native_green_only (now off)");
   }
-  // As the solve does: boards searched first where the view's first frame showed them.
+  // As the solve does (solver::ViewHints): boards searched first where the first frame of the
+  // view that showed them had them; the view's earlier rounds are measured for that.
   std::optional<solver::BoardHints> hints;
-  if (options.hint_boards_from_first_frame && view_first != args.explain) {
-    const cv::Mat first = cv::imread((dir / view_first).string(), cv::IMREAD_UNCHANGED);
-    if (!first.empty() && first.size() == img.size()) {
-      hints = solver::HintsFrom(solver::MeasureImage(first, asks, options.dots, options.boards),
-                                options.boards);
-      std::printf("board hints from %s (the view's first frame, boards.hint_from_first_frame):\n",
-                  view_first.c_str());
-      for (size_t b = 0; b < asks.size(); ++b) {
-        if (const auto& h = (*hints)[b])
-          std::printf("  %s: %s at scale %.3f in %dx%d+%d+%d\n", names[b].c_str(),
-                      vision::ToString(h->method), h->scale, h->region.width, h->region.height,
-                      h->region.x, h->region.y);
-        else
-          std::printf("  %s: not found there (the whole chain)\n", names[b].c_str());
+  if (options.hint_boards_from_first_frame) {
+    const size_t position = static_cast<size_t>(
+        std::find(view_files.begin(), view_files.end(), args.explain) - view_files.begin());
+    solver::ViewHints view(asks.size(), view_files.size());
+    for (;;) {
+      const auto [begin, end] = view.NextRound();
+      if (begin == end || position < end) break;
+      std::vector<solver::ImageMeasurement> round;
+      for (size_t k = begin; k < end; ++k) {
+        const cv::Mat other = cv::imread((dir / view_files[k]).string(), cv::IMREAD_UNCHANGED);
+        if (other.empty())
+          throw std::runtime_error((dir / view_files[k]).string() + ": cannot read the image");
+        const auto& h = view.hints();
+        const bool any =
+            std::any_of(h.begin(), h.end(), [](const auto& x) { return x.has_value(); });
+        round.push_back(
+            solver::MeasureImage(other, asks, options.dots, options.boards, any ? &h : nullptr));
       }
+      for (size_t k = begin; k < end; ++k) view.Add(k, round[k - begin], options.boards);
     }
+    hints = view.hints();
+    std::printf(
+        "board hints (boards.hint_from_first_frame: from the first frame of the view that "
+        "found each board):\n");
+    for (size_t b = 0; b < asks.size(); ++b) {
+      if (const auto& h = (*hints)[b])
+        std::printf("  %s: from %s, %s at scale %.3f in %dx%d+%d+%d\n", names[b].c_str(),
+                    view_files[view.source(b)].c_str(), vision::ToString(h->method), h->scale,
+                    h->region.width, h->region.height, h->region.x, h->region.y);
+      else
+        std::printf("  %s: none (no earlier round found it): the whole chain\n", names[b].c_str());
+    }
+    if (std::none_of(hints->begin(), hints->end(), [](const auto& h) { return h.has_value(); }))
+      hints.reset();
   }
   const auto t0 = std::chrono::steady_clock::now();
   const solver::ImageMeasurement m =

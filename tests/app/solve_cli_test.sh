@@ -84,10 +84,11 @@ PY
 grep -q "world board (23x28 inner corners): found by" "$dir/explain"
 grep -q "dot candidates:" "$dir/explain"
 grep -q "kept (Gaussian fit)" "$dir/explain"
-# A later frame of the view: its boards are searched first where the view's first frame had them.
+# A later frame of the view: its boards are searched first where the view's first frame had them
+# (the first frame that found each board: solver::ViewHints).
 "$msmcal" solve "$dir/s" --explain step2/0002.png > "$dir/explain2" 2>&1
-grep -q "board hints from step2/0000.png" "$dir/explain2"
-grep -Eq "^  world: sb_[a-z]+ at scale [0-9.]+ in [0-9]+x[0-9]+\+[0-9]+\+[0-9]+$" "$dir/explain2"
+grep -q "^board hints (boards.hint_from_first_frame" "$dir/explain2"
+grep -Eq "^  world: from step2/0000.png, sb_[a-z]+ at scale [0-9.]+ in [0-9]+x[0-9]+\+[0-9]+\+[0-9]+$" "$dir/explain2"
 grep -Eq "^  sb_[a-z]+ +scale [0-9.]+ in [0-9]+x[0-9]+\+[0-9]+\+[0-9]+: accepted$" "$dir/explain2"
 if "$msmcal" solve "$dir/s" --explain step2/nope.png > "$dir/err" 2>&1; then exit 1; fi
 grep -q "not a frame of" "$dir/err"

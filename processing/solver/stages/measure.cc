@@ -101,34 +101,62 @@ std::vector<vision::Dot> DotsOnHostPlane(const std::vector<vision::Dot>& dots,
 // `expected[i]`: the dots image i should show (0: not checked). An image whose first pass finds
 // fewer on its board's plane is measured again with settings from its own data
 // (AdaptiveDotOptions); the second pass is kept if it finds more.
-// `view[i]`: the camera view of image i (PipelineOptions::hint_boards_from_first_frame: the
-// first image of each view is measured first, its boards hint the others').
+// `view[i]`: the camera view of image i (PipelineOptions::hint_boards_from_first_frame): each
+// view's images take their hints as ViewHints says; the views' rounds run side by side. The
+// rounds do not depend on `image_threads`, so neither do the measurements.
 std::vector<ImageMeasurement> MeasureImages(
     const std::vector<std::string>& files,
     const std::vector<std::vector<vision::BoardSize>>& boards, const ImageLoader& load,
     const PipelineOptions& o, const std::vector<int>& expected, const std::vector<int>& view) {
   std::vector<ImageMeasurement> out(files.size());
-  auto measure = [&](size_t i, const BoardHints* hints) {
+  auto measure = [&](size_t i, const BoardHints& hints) {
     const cv::Mat img = load(files[i]);
     if (img.empty()) throw SolveError(files[i] + ": cannot read the image");
-    out[i] = MeasureFrame(img, boards[i], expected[i], o, hints);
+    const bool any =
+        std::any_of(hints.begin(), hints.end(), [](const auto& h) { return h.has_value(); });
+    out[i] = MeasureFrame(img, boards[i], expected[i], o, any ? &hints : nullptr);
   };
   if (!o.hint_boards_from_first_frame) {
-    ForEachImage(files.size(), o.image_threads, [&](size_t i) { measure(i, nullptr); });
+    ForEachImage(files.size(), o.image_threads, [&](size_t i) { measure(i, {}); });
     return out;
   }
-  std::map<int, size_t> first_of_view;
-  for (size_t i = 0; i < files.size(); ++i) first_of_view.emplace(view[i], i);
-  std::vector<size_t> firsts;
-  for (const auto& [v, i] : first_of_view) firsts.push_back(i);
-  ForEachImage(firsts.size(), o.image_threads, [&](size_t k) { measure(firsts[k], nullptr); });
-  std::map<int, BoardHints> hints;
-  for (const auto& [v, i] : first_of_view) hints[v] = HintsFrom(out[i], o.boards);
-  std::vector<size_t> rest;
-  for (size_t i = 0; i < files.size(); ++i)
-    if (first_of_view.at(view[i]) != i) rest.push_back(i);
+  struct View {
+    std::vector<size_t> images;  // file order
+    std::optional<ViewHints> hints;
+  };
+  std::map<int, View> views;
+  for (size_t i = 0; i < files.size(); ++i) views[view[i]].images.push_back(i);
+  // Hints only transfer between images that ask for the same boards.
+  for (auto& [id, v] : views) {
+    for (size_t i : v.images)
+      if (boards[i].size() != boards[v.images[0]].size())
+        throw std::invalid_argument("MeasureImages: the images of a view ask for different boards");
+    v.hints.emplace(boards[v.images[0]].size(), v.images.size());
+  }
+  for (;;) {
+    struct Item {
+      View* view;
+      size_t position;
+      BoardHints hints;
+    };
+    std::vector<Item> batch;
+    for (auto& [id, v] : views) {
+      const auto [begin, end] = v.hints->NextRound();
+      for (size_t k = begin; k < end; ++k) batch.push_back({&v, k, v.hints->hints()});
+    }
+    if (batch.empty()) break;
+    ForEachImage(batch.size(), o.image_threads, [&](size_t k) {
+      measure(batch[k].view->images[batch[k].position], batch[k].hints);
+    });
+    for (const Item& item : batch)
+      item.view->hints->Add(item.position, out[item.view->images[item.position]], o.boards);
+  }
+  std::vector<std::pair<size_t, const BoardHints*>> rest;
+  for (const auto& [id, v] : views)
+    for (size_t k = v.hints->next(); k < v.images.size(); ++k)
+      rest.emplace_back(v.images[k], &v.hints->hints());
   ForEachImage(rest.size(), o.image_threads,
-               [&](size_t k) { measure(rest[k], &hints.at(view[rest[k]])); });
+               [&](size_t k) { measure(rest[k].first, *rest[k].second); });
   return out;
 }
 
@@ -454,6 +482,33 @@ BoardHints HintsFrom(const ImageMeasurement& m, const vision::CheckerboardOption
   for (const auto& b : m.boards)
     hints.push_back(b ? std::optional(vision::HintFrom(*b, m.image_size, options)) : std::nullopt);
   return hints;
+}
+
+ViewHints::ViewHints(size_t boards, size_t images)
+    : images_(images), hints_(boards), source_(boards, -1) {}
+
+bool ViewHints::Complete() const {
+  return std::all_of(hints_.begin(), hints_.end(), [](const auto& h) { return h.has_value(); });
+}
+
+std::pair<size_t, size_t> ViewHints::NextRound() {
+  if (Complete() || next_ == images_) return {next_, next_};
+  const size_t begin = next_;
+  next_ = std::min(images_, 2 * begin + 1);  // 1, then 2, 4, 8, ... images
+  return {begin, next_};
+}
+
+void ViewHints::Add(size_t position, const ImageMeasurement& m,
+                    const vision::CheckerboardOptions& options) {
+  if (m.boards.size() != hints_.size())
+    throw std::invalid_argument("ViewHints::Add: the image asked for other boards");
+  const BoardHints found = HintsFrom(m, options);
+  for (size_t b = 0; b < found.size(); ++b) {
+    if (!found[b]) continue;
+    if (hints_[b] && static_cast<size_t>(source_[b]) < position) continue;
+    hints_[b] = found[b];
+    source_[b] = static_cast<int>(position);
+  }
 }
 
 ImageMeasurement MeasureImage(const cv::Mat& img, const std::vector<vision::BoardSize>& boards,

@@ -7,6 +7,7 @@
 
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "processing/dataset/recording.h"
@@ -52,6 +53,33 @@ ImageMeasurement MeasureFrame(const cv::Mat& image, const std::vector<vision::Bo
 // The hints a measured image gives the other images of its view (one per board asked for; none
 // for a board it did not show).
 BoardHints HintsFrom(const ImageMeasurement& m, const vision::CheckerboardOptions& options);
+
+// Where the images of one camera view take their board hints from
+// (PipelineOptions::hint_boards_from_first_frame), shared by the solve (MeasureImages) and
+// `msmcal solve --explain`. The view's images are measured in rounds, in file order: its first
+// image, then the next 2, 4, 8, ..., while some board has no hint yet; then all the others at
+// once. An image is measured with the hints known when its round starts; each board's hint is
+// that of the first image (in file order) that found it. A view whose first frame misses a board
+// (the world board hidden, a spoiled frame) so takes that board's hint from a later frame.
+class ViewHints {
+ public:
+  ViewHints(size_t boards, size_t images);
+  // The view positions [begin, end) of the next round; an empty range when every board has a
+  // hint or every image was taken: the images from next() on are measured with hints().
+  std::pair<size_t, size_t> NextRound();
+  // The boards found in the image at `position` (of a round already taken).
+  void Add(size_t position, const ImageMeasurement& m, const vision::CheckerboardOptions& options);
+  const BoardHints& hints() const { return hints_; }
+  // The view position of the image each board's hint came from (-1: none yet).
+  int source(size_t board) const { return source_.at(board); }
+  size_t next() const { return next_; }
+  bool Complete() const;
+
+ private:
+  size_t images_, next_ = 0;
+  BoardHints hints_;
+  std::vector<int> source_;
+};
 
 // Step 1: the plate does not move within a sliding pose, so a frame of a pose whose sliding
 // board was not found (a laser spot on a square corner can break the detectors' grid) takes the

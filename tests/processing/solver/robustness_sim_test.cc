@@ -706,5 +706,53 @@ TEST(BoardHints, FindTheSameBoardsWhereTheFirstFrameOfTheViewHadThem) {
   EXPECT_LT(worst, 0.05);
 }
 
+// A view whose first image misses a board (step 1: the world board hidden in the first frame)
+// takes that board's hint from the first image that found it: the next rounds (2, then 4, ...
+// images) search unhinted for it, and every image after them finds it in the region.
+TEST(BoardHints, AViewWhoseFirstFrameMissesABoardTakesItsHintFromALaterOne) {
+  const Draw d = DrawScene(15);
+  const sim::RigSimulator simulator(d.sim);
+  const dataset::Recording rec = simulator.MakeRecording(/*with_hall=*/false);
+  PipelineOptions o;
+  // Where the world board is in step 1 (the camera and the world board do not move).
+  const cv::Mat first = ApplyDraw(d, simulator.RenderStep1Frame(0));
+  const ImageMeasurement plain = MeasureImage(first,
+                                              {{rec.world_board.cols, rec.world_board.rows},
+                                               {rec.sliding_board.cols, rec.sliding_board.rows}},
+                                              o.dots, o.boards);
+  ASSERT_TRUE(plain.boards[0].has_value());
+  std::vector<cv::Point2f> corners;
+  for (const auto& c : plain.boards[0]->corners_px) corners.emplace_back(c.x(), c.y());
+  const cv::Rect world = cv::boundingRect(corners);
+  const ImageLoader load = msmcal::testing::CachedLoader([&](const std::string& file) -> cv::Mat {
+    for (size_t i = 0; i < rec.step1.size(); ++i) {
+      if (rec.step1[i].file != file) continue;
+      cv::Mat img = ApplyDraw(d, simulator.RenderStep1Frame(i));
+      if (i == 0) {  // the world board covered by a grey card
+        const cv::Rect card = (world + cv::Size(40, 40)) - cv::Point(20, 20);
+        img(card & cv::Rect(0, 0, img.cols, img.rows)).setTo(cv::mean(img(world)));
+      }
+      return img;
+    }
+    for (size_t i = 0; i < rec.step2.size(); ++i)
+      if (rec.step2[i].file == file) return ApplyDraw(d, simulator.RenderStep2Frame(i));
+    return cv::Mat();
+  });
+  const RecordingMeasurement m = MeasureRecording(rec, load, o);
+  ASSERT_TRUE(m.log.error.empty()) << m.log.error;
+  ASSERT_GE(rec.step1.size(), 6u);
+  EXPECT_FALSE(m.images[0].boards[0].has_value()) << "the card does not hide the world board";
+  // Round 2 (frames 1 and 2) searched the whole image for the world board and found it.
+  for (size_t i : {1u, 2u}) {
+    ASSERT_TRUE(m.images[i].boards[0].has_value()) << m.detections[i].file;
+    EXPECT_FALSE(m.images[i].boards[0]->hinted) << m.detections[i].file;
+  }
+  // Every later step 1 frame found it in frame 1's region.
+  for (size_t i = 3; i < rec.step1.size(); ++i) {
+    ASSERT_TRUE(m.images[i].boards[0].has_value()) << m.detections[i].file;
+    EXPECT_TRUE(m.images[i].boards[0]->hinted) << m.detections[i].file;
+  }
+}
+
 }  // namespace
 }  // namespace msmcal::solver
