@@ -24,6 +24,7 @@
 #include "processing/solver/diagnostics.h"
 #include "processing/solver/home_frame.h"
 #include "processing/solver/pipeline.h"
+#include "processing/solver/stages/exposures.h"
 #include "sessions/interchange/interchange_io.h"
 #include "sessions/results/finish_steps.h"
 #include "sessions/results/solve_options_io.h"
@@ -47,7 +48,21 @@ struct SolveArgs {
 // with the reason it was kept or refused.
 void RunExplain(const SolveArgs& args, const solver::PipelineOptions& options) {
   const fs::path dir(args.dir);
-  const dataset::Recording rec = interchange::ReadRecordingForSolve(dir);
+  const dataset::Recording input = interchange::ReadRecordingForSolve(dir);
+  // As the solve does (solver::CollapseExposures): the frame's repeated exposures are averaged
+  // and measured as one scene, named by its first exposure.
+  const solver::ExposureScenes exposures =
+      options.average_exposures ? solver::CollapseExposures(input) : solver::ExposureScenes{};
+  const dataset::Recording& rec = exposures.Collapsed() ? exposures.recording : input;
+  const std::string explained = exposures.SceneOf(args.explain);
+  const solver::ImageLoader read = [&](const std::string& file) {
+    return cv::imread((dir / file).string(), cv::IMREAD_UNCHANGED);
+  };
+  const solver::ImageLoader load = [&](const std::string& file) {
+    cv::Mat img = solver::LoadScene(exposures, read, file);
+    if (img.empty()) throw std::runtime_error((dir / file).string() + ": cannot read the image");
+    return img;
+  };
   const vision::BoardSize world{rec.world_board.cols, rec.world_board.rows};
   const vision::BoardSize sliding{rec.sliding_board.cols, rec.sliding_board.rows};
   std::vector<vision::BoardSize> asks;
@@ -59,7 +74,7 @@ void RunExplain(const SolveArgs& args, const solver::PipelineOptions& options) {
   std::vector<std::string> scene;
   std::vector<std::string> view_files;  // the frames of its view, in order (board hints)
   for (const auto& f : rec.step1)
-    if (f.file == args.explain) {
+    if (f.file == explained) {
       for (const auto& g : rec.step1)
         if (g.pose == f.pose && g.file != f.file) scene.push_back(g.file);
       expected = static_cast<int>(f.beams.size());
@@ -71,7 +86,7 @@ void RunExplain(const SolveArgs& args, const solver::PipelineOptions& options) {
              std::to_string(f.beams.size()) + " dot(s) on the sliding plate";
     }
   for (const auto& f : rec.step2)
-    if (f.file == args.explain) {
+    if (f.file == explained) {
       for (const auto& g : rec.step2)
         if (g.file != f.file) scene.push_back(g.file);
       asks = {world};
@@ -86,12 +101,17 @@ void RunExplain(const SolveArgs& args, const solver::PipelineOptions& options) {
   if (asks.empty())
     throw std::runtime_error(args.explain + ": not a frame of " + (dir / "session.yaml").string() +
                              " (name it as session.yaml does, e.g. step1/0004.png)");
-  const cv::Mat img = cv::imread((dir / args.explain).string(), cv::IMREAD_UNCHANGED);
-  if (img.empty())
-    throw std::runtime_error((dir / args.explain).string() + ": cannot read the image");
+  const cv::Mat img = load(explained);
   double lo = 0, hi = 0;
   cv::minMaxLoc(img.reshape(1), &lo, &hi);
-  std::printf("%s: %dx%d, %d channel(s), %d-bit, levels %.0f..%.0f\n%s\n", args.explain.c_str(),
+  if (const auto it = exposures.members.find(explained);
+      it != exposures.members.end() && it->second.size() > 1) {
+    std::string files;
+    for (const auto& f : it->second) files += (files.empty() ? "" : ", ") + f;
+    std::printf("%s: measured as the scene %s, the mean of %zu exposures (%s; average_exposures)\n",
+                args.explain.c_str(), explained.c_str(), it->second.size(), files.c_str());
+  }
+  std::printf("%s: %dx%d, %d channel(s), %d-bit, levels %.0f..%.0f\n%s\n", explained.c_str(),
               img.cols, img.rows, img.channels(), img.depth() == CV_16U ? 16 : 8, lo, hi,
               what.c_str());
   if (img.channels() == 3) {
@@ -110,16 +130,14 @@ void RunExplain(const SolveArgs& args, const solver::PipelineOptions& options) {
   std::optional<solver::BoardHints> hints;
   if (options.hint_boards_from_first_frame) {
     const size_t position = static_cast<size_t>(
-        std::find(view_files.begin(), view_files.end(), args.explain) - view_files.begin());
+        std::find(view_files.begin(), view_files.end(), explained) - view_files.begin());
     solver::ViewHints view(asks.size(), view_files.size());
     for (;;) {
       const auto [begin, end] = view.NextRound();
       if (begin == end || position < end) break;
       std::vector<solver::ImageMeasurement> round;
       for (size_t k = begin; k < end; ++k) {
-        const cv::Mat other = cv::imread((dir / view_files[k]).string(), cv::IMREAD_UNCHANGED);
-        if (other.empty())
-          throw std::runtime_error((dir / view_files[k]).string() + ": cannot read the image");
+        const cv::Mat other = load(view_files[k]);
         const auto& h = view.hints();
         const bool any =
             std::any_of(h.begin(), h.end(), [](const auto& x) { return x.has_value(); });
@@ -236,7 +254,11 @@ void RunExplain(const SolveArgs& args, const solver::PipelineOptions& options) {
     vision::StaticBackground background;
     background.Add(img);
     for (const auto& file : scene) {
-      const cv::Mat other = cv::imread((dir / file).string(), cv::IMREAD_UNCHANGED);
+      cv::Mat other;
+      try {
+        other = load(file);
+      } catch (const std::exception&) {  // reported below, as a file left out
+      }
       if (other.empty() || !background.Add(other))
         std::printf("  (%s cannot be read or differs in size: left out of the background)\n",
                     file.c_str());

@@ -90,6 +90,14 @@ grep -q "kept (Gaussian fit)" "$dir/explain"
 grep -q "^board hints (boards.hint_from_first_frame" "$dir/explain2"
 grep -Eq "^  world: from step2/0000.png, sb_[a-z]+ at scale [0-9.]+ in [0-9]+x[0-9]+\+[0-9]+\+[0-9]+$" "$dir/explain2"
 grep -Eq "^  sb_[a-z]+ +scale [0-9.]+ in [0-9]+x[0-9]+\+[0-9]+\+[0-9]+: accepted$" "$dir/explain2"
+# Repeated exposures are explained as the solve measures them: the scene's mean, named by its
+# first exposure (average_exposures).
+printf 'camera: {width: 640, height: 512, fx: 520, fy: 520, cx: 319.5, cy: 255.5}\nstep1: {exposures: 2}\n' \
+  > "$dir/sim2.yaml"
+"$msmcal" simulate "$dir/e" --config "$dir/sim2.yaml" --seed 4 > /dev/null
+"$msmcal" solve "$dir/e" --explain step1/0001.png > "$dir/explain3" 2>&1
+grep -q "^step1/0001.png: measured as the scene step1/0000.png, the mean of 2 exposures (step1/0000.png, step1/0001.png; average_exposures)$" "$dir/explain3"
+grep -Eq "^step1/0000.png: 640x512, 1 channel\(s\), 16-bit" "$dir/explain3"
 if "$msmcal" solve "$dir/s" --explain step2/nope.png > "$dir/err" 2>&1; then exit 1; fi
 grep -q "not a frame of" "$dir/err"
 # hall calibrate then reads the fractional times and refuses the NaN row with its line.
