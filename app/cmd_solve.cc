@@ -177,11 +177,12 @@ void RunExplain(const SolveArgs& args, const solver::PipelineOptions& options) {
                             : "NOT FOUND");
     for (const auto& a : m.board_attempts[b])
       std::printf("  %-12s scale %.3f%s: %s%s%s\n", vision::ToString(a.method), a.scale,
-                  a.region.empty() ? ""
-                                   : (" in " + std::to_string(a.region.width) + "x" +
-                                      std::to_string(a.region.height) + "+" +
-                                      std::to_string(a.region.x) + "+" + std::to_string(a.region.y))
-                                         .c_str(),
+                  a.region.empty()
+                      ? ""
+                      : (" in " + std::to_string(a.region.width) + "x" +
+                         std::to_string(a.region.height) + "+" + std::to_string(a.region.x) + "+" +
+                         std::to_string(a.region.y) + (a.textured ? " (checker-like region)" : ""))
+                            .c_str(),
                   !a.found     ? "no grid"
                   : a.accepted ? "accepted"
                                : "refused",

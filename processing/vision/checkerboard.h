@@ -46,6 +46,12 @@ struct CheckerboardOptions {
   int upscale_max_side_px = 3300;
   bool try_classic = true;
   int classic_max_corners = 400;  // its cost explodes with the board's size
+  // Where SB found nothing on the whole image, before the classic and upscaled searches on it:
+  // SB at full resolution, SB upscaled x2 and classic on each of the image's most checker-like
+  // regions (TexturedRegions), at most this many (0: off). SB misses boards on a whole frame
+  // that it finds on their surroundings; the upscaled search, too costly on a whole frame, is
+  // affordable on a region; the classic one can spend minutes failing on a whole frame.
+  int textured_regions = 4;
   // A grid is refused if cornerSubPix moves a corner by more than this fraction of the local
   // square size (the detector latched on something else), or if a corner deviates from the
   // average of its neighbours' prediction by more than this fraction (not a grid).
@@ -96,8 +102,18 @@ struct BoardAttempt {
   bool found = false;     // the detector returned a grid
   bool accepted = false;  // and it passed the geometric check
   std::string note;       // why a found grid was refused (or that it was accepted as rough)
-  cv::Rect region;        // the hint's region it ran on (empty: the whole image)
+  cv::Rect region;        // the region it ran on (empty: the whole image)
+  bool textured = false;  // that region is one of TexturedRegions' (else a hint's)
 };
+
+// The parts of an 8-bit grey image that look like a checkerboard, largest first: where the
+// gradient varies in two directions over a window of about 1/60 of the image's longer side (the
+// smaller eigenvalue of the averaged structure tensor, above the geometric mean of its median and
+// its maximum: edges, flat areas and noise stay below), closed by the window (squares larger than
+// it leave holes). A patch narrower than two windows is a point-like feature (a laser spot, a
+// plate's corner) and is left out. Each region is grown by a window; regions that cannot hold
+// `size` (4 x 4 px per inner corner) or cover most of the image are left out.
+std::vector<cv::Rect> TexturedRegions(const cv::Mat& gray, BoardSize size, int max_regions);
 
 struct CheckerboardDetection {
   std::vector<Eigen::Vector2d> corners_px;  // canonical order, size cols * rows

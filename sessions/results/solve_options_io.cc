@@ -67,6 +67,9 @@ std::vector<Knob> Knobs(solver::PipelineOptions& o) {
       {"boards.try_sb_upscaled", &o.boards.try_sb_upscaled, "fallback: SB on a 2x upscaled copy"},
       {"boards.upscale_max_side_px", &o.boards.upscale_max_side_px,
        "the upscaled fallback only where the upscaled longer side stays below this"},
+      {"boards.textured_regions", &o.boards.textured_regions,
+       "where SB misses on the whole image: the detectors on this many checker-like regions (0: "
+       "off)"},
       {"boards.max_refine_shift_squares", &o.boards.max_refine_shift_squares,
        "refuse a grid whose sub-pixel refinement moves a corner more than this (squares)"},
       {"boards.refine_window_squares", &o.boards.refine_window_squares,
