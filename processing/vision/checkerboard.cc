@@ -419,9 +419,12 @@ std::optional<CheckerboardDetection> DetectCheckerboard(const cv::Mat& image, Bo
       std::vector<Try> tries;
       for (const cv::Rect& r : TexturedRegions(gray, size, options.textured_regions)) {
         tries.push_back({BoardMethod::kSbFull, 1.0, r, true});
-        if (options.try_sb_upscaled &&
-            2 * std::max(r.width, r.height) <= options.upscale_max_side_px)
-          tries.push_back({BoardMethod::kSbUpscaled, 2.0, r, true});
+        // x3 too: a 25 x 18 board of 7-10 px squares (1600 x 1200) that SB finds on its region
+        // x3 and not x2, whatever the margin around it.
+        for (double up : {2.0, 3.0})
+          if (options.try_sb_upscaled &&
+              up * std::max(r.width, r.height) <= options.upscale_max_side_px)
+            tries.push_back({BoardMethod::kSbUpscaled, up, r, true});
         if (options.try_classic && size.cols * size.rows <= options.classic_max_corners)
           tries.push_back({BoardMethod::kClassic, 1.0, r, true});
       }
