@@ -127,43 +127,35 @@ void RunExplain(const SolveArgs& args, const solver::PipelineOptions& options) {
   }
   // As the solve does (solver::ViewHints): boards searched first where the first frame of the
   // view that showed them had them; the view's earlier rounds are measured for that.
-  std::optional<solver::BoardHints> hints;
+  std::optional<solver::ViewHints> view;
   if (options.hint_boards_from_first_frame) {
     const size_t position = static_cast<size_t>(
         std::find(view_files.begin(), view_files.end(), explained) - view_files.begin());
-    solver::ViewHints view(asks.size(), view_files.size());
+    view.emplace(asks.size(), view_files.size());
     for (;;) {
-      const auto [begin, end] = view.NextRound();
+      const auto [begin, end] = view->NextRound();
       if (begin == end || position < end) break;
       std::vector<solver::ImageMeasurement> round;
-      for (size_t k = begin; k < end; ++k) {
-        const cv::Mat other = load(view_files[k]);
-        const auto& h = view.hints();
-        const bool any =
-            std::any_of(h.begin(), h.end(), [](const auto& x) { return x.has_value(); });
-        round.push_back(
-            solver::MeasureImage(other, asks, options.dots, options.boards, any ? &h : nullptr));
-      }
-      for (size_t k = begin; k < end; ++k) view.Add(k, round[k - begin], options.boards);
+      for (size_t k = begin; k < end; ++k)
+        round.push_back(solver::MeasureImage(load(view_files[k]), asks, options.dots,
+                                             options.boards, &view->hints()));
+      for (size_t k = begin; k < end; ++k) view->Add(k, round[k - begin], options.boards);
     }
-    hints = view.hints();
     std::printf(
         "board hints (boards.hint_from_first_frame: from the first frame of the view that "
         "found each board):\n");
     for (size_t b = 0; b < asks.size(); ++b) {
-      if (const auto& h = (*hints)[b])
+      if (const auto& h = view->hints()[b])
         std::printf("  %s: from %s, %s at scale %.3f in %dx%d+%d+%d\n", names[b].c_str(),
-                    view_files[view.source(b)].c_str(), vision::ToString(h->method), h->scale,
+                    view_files[view->source(b)].c_str(), vision::ToString(h->method), h->scale,
                     h->region.width, h->region.height, h->region.x, h->region.y);
       else
         std::printf("  %s: none (no earlier round found it): the whole chain\n", names[b].c_str());
     }
-    if (std::none_of(hints->begin(), hints->end(), [](const auto& h) { return h.has_value(); }))
-      hints.reset();
   }
   const auto t0 = std::chrono::steady_clock::now();
   const solver::ImageMeasurement m =
-      solver::MeasureFrame(img, asks, expected, options, hints ? &*hints : nullptr);
+      solver::MeasureFrame(img, asks, expected, options, view ? &view->hints() : nullptr);
   const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   std::printf("measured in %.2f s\n", secs);
   for (size_t b = 0; b < asks.size(); ++b) {

@@ -327,14 +327,14 @@ std::vector<cv::Rect> TexturedRegions(const cv::Mat& gray, BoardSize size, int m
   cv::Mat labels, stats, centroids;
   const int n = cv::connectedComponentsWithStats(mask, labels, stats, centroids, 8, CV_32S);
   const cv::Rect image(0, 0, gray.cols, gray.rows);
-  const int min_cols = 4 * std::min(size.cols, size.rows);
+  const int min_side = 4 * std::min(size.cols, size.rows);  // px: 4 per inner corner
   std::vector<std::pair<int, cv::Rect>> regions;
   for (int c = 1; c < n; ++c) {
     const cv::Rect r(stats.at<int>(c, cv::CC_STAT_LEFT), stats.at<int>(c, cv::CC_STAT_TOP),
                      stats.at<int>(c, cv::CC_STAT_WIDTH), stats.at<int>(c, cv::CC_STAT_HEIGHT));
     const cv::Rect grown = ((r + cv::Size(2 * w, 2 * w)) - cv::Point(w, w)) & image;
     // A point-like feature (a spot, a plate's corner) makes a patch about one window across.
-    if (std::min(r.width, r.height) < 2 * w || std::min(grown.width, grown.height) < min_cols ||
+    if (std::min(r.width, r.height) < 2 * w || std::min(grown.width, grown.height) < min_side ||
         grown.area() < 16 * size.cols * size.rows || grown.area() > 0.8 * image.area())
       continue;
     regions.emplace_back(stats.at<int>(c, cv::CC_STAT_AREA), grown);

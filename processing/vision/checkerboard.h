@@ -47,10 +47,10 @@ struct CheckerboardOptions {
   bool try_classic = true;
   int classic_max_corners = 400;  // its cost explodes with the board's size
   // Where SB found nothing on the whole image, before the classic and upscaled searches on it:
-  // SB at full resolution, SB upscaled x2 and x3 and classic on each of the image's most checker-like
-  // regions (TexturedRegions), at most this many (0: off). SB misses boards on a whole frame
-  // that it finds on their surroundings; the upscaled search, too costly on a whole frame, is
-  // affordable on a region; the classic one can spend minutes failing on a whole frame.
+  // SB at full resolution, SB upscaled x2 and x3 and classic on each of the image's most
+  // checker-like regions (TexturedRegions), at most this many (0: off). SB misses boards on a
+  // whole frame that it finds on their surroundings; the upscaled search, too costly on a whole
+  // frame, is affordable on a region; the classic one can spend minutes failing on a whole frame.
   int textured_regions = 4;
   // A grid is refused if cornerSubPix moves a corner by more than this fraction of the local
   // square size (the detector latched on something else), or if a corner deviates from the

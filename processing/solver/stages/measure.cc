@@ -109,15 +109,13 @@ std::vector<ImageMeasurement> MeasureImages(
     const std::vector<std::vector<vision::BoardSize>>& boards, const ImageLoader& load,
     const PipelineOptions& o, const std::vector<int>& expected, const std::vector<int>& view) {
   std::vector<ImageMeasurement> out(files.size());
-  auto measure = [&](size_t i, const BoardHints& hints) {
+  auto measure = [&](size_t i, const BoardHints* hints) {
     const cv::Mat img = load(files[i]);
     if (img.empty()) throw SolveError(files[i] + ": cannot read the image");
-    const bool any =
-        std::any_of(hints.begin(), hints.end(), [](const auto& h) { return h.has_value(); });
-    out[i] = MeasureFrame(img, boards[i], expected[i], o, any ? &hints : nullptr);
+    out[i] = MeasureFrame(img, boards[i], expected[i], o, hints);
   };
   if (!o.hint_boards_from_first_frame) {
-    ForEachImage(files.size(), o.image_threads, [&](size_t i) { measure(i, {}); });
+    ForEachImage(files.size(), o.image_threads, [&](size_t i) { measure(i, nullptr); });
     return out;
   }
   struct View {
@@ -133,30 +131,27 @@ std::vector<ImageMeasurement> MeasureImages(
         throw std::invalid_argument("MeasureImages: the images of a view ask for different boards");
     v.hints.emplace(boards[v.images[0]].size(), v.images.size());
   }
+  // The hints change only between rounds (Add), never while a round is measured.
   for (;;) {
-    struct Item {
-      View* view;
-      size_t position;
-      BoardHints hints;
-    };
-    std::vector<Item> batch;
+    std::vector<std::pair<View*, size_t>> batch;  // (view, position in it)
     for (auto& [id, v] : views) {
       const auto [begin, end] = v.hints->NextRound();
-      for (size_t k = begin; k < end; ++k) batch.push_back({&v, k, v.hints->hints()});
+      for (size_t k = begin; k < end; ++k) batch.emplace_back(&v, k);
     }
     if (batch.empty()) break;
     ForEachImage(batch.size(), o.image_threads, [&](size_t k) {
-      measure(batch[k].view->images[batch[k].position], batch[k].hints);
+      const auto& [v, position] = batch[k];
+      measure(v->images[position], &v->hints->hints());
     });
-    for (const Item& item : batch)
-      item.view->hints->Add(item.position, out[item.view->images[item.position]], o.boards);
+    for (const auto& [v, position] : batch)
+      v->hints->Add(position, out[v->images[position]], o.boards);
   }
   std::vector<std::pair<size_t, const BoardHints*>> rest;
   for (const auto& [id, v] : views)
     for (size_t k = v.hints->next(); k < v.images.size(); ++k)
       rest.emplace_back(v.images[k], &v.hints->hints());
   ForEachImage(rest.size(), o.image_threads,
-               [&](size_t k) { measure(rest[k].first, *rest[k].second); });
+               [&](size_t k) { measure(rest[k].first, rest[k].second); });
   return out;
 }
 
@@ -504,8 +499,7 @@ void ViewHints::Add(size_t position, const ImageMeasurement& m,
     throw std::invalid_argument("ViewHints::Add: the image asked for other boards");
   const BoardHints found = HintsFrom(m, options);
   for (size_t b = 0; b < found.size(); ++b) {
-    if (!found[b]) continue;
-    if (hints_[b] && static_cast<size_t>(source_[b]) < position) continue;
+    if (!found[b] || hints_[b]) continue;
     hints_[b] = found[b];
     source_[b] = static_cast<int>(position);
   }

@@ -67,15 +67,18 @@ class ViewHints {
   // The view positions [begin, end) of the next round; an empty range when every board has a
   // hint or every image was taken: the images from next() on are measured with hints().
   std::pair<size_t, size_t> NextRound();
-  // The boards found in the image at `position` (of a round already taken).
+  // The boards found in the image at `position` (of a round already taken); a round's images are
+  // added in file order, once all of them are measured.
   void Add(size_t position, const ImageMeasurement& m, const vision::CheckerboardOptions& options);
+  // Per board: the hint, if any (an image measured with every entry empty is measured as
+  // without hints).
   const BoardHints& hints() const { return hints_; }
   // The view position of the image each board's hint came from (-1: none yet).
   int source(size_t board) const { return source_.at(board); }
   size_t next() const { return next_; }
-  bool Complete() const;
 
  private:
+  bool Complete() const;
   size_t images_, next_ = 0;
   BoardHints hints_;
   std::vector<int> source_;
