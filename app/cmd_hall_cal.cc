@@ -28,7 +28,13 @@ void RunCalibrate(const std::string& dir, int repetitions, uint64_t seed,
   }
   common::ProgressLine progress("hall calibrate", static_cast<size_t>(std::max(0, repetitions)),
                                 "repetitions");  // on a terminal only
-  options.on_repetition = [&](int done, int) { progress.Update(static_cast<size_t>(done)); };
+  // Leave-one-out (fewer poses than random splits need) runs one repetition per pose: the line
+  // shows the share done.
+  options.on_repetition = [&](int done, int total) {
+    progress.Update(total > 0 ? static_cast<size_t>(done) * static_cast<size_t>(repetitions) /
+                                    static_cast<size_t>(total)
+                              : 0);
+  };
   const results::HallCalibrationStepResult r = results::RunHallCalibration(dir, options);
   progress.Finish();
   PrintStepReport(r);

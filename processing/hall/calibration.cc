@@ -216,8 +216,9 @@ HallCalibrationResult CalibrateHall(const HallCalibrationInput& in,
   if (!(in.pattern_period_s > 0))
     throw std::invalid_argument("CalibrateHall: drive.pattern_period_s must be > 0");
   // Enough poses that a training split (train_fraction of them) holds more poses than the
-  // simplest model asked has features, and its test split at least two.
-  size_t min_poses = 0;
+  // simplest model asked has features, and its test split at least two. Fewer poses, down to
+  // two more than those features, are evaluated leave-one-out: each pose held out once.
+  size_t min_poses = 0, min_loo = 0;
   for (HallModelKind kind : o.models) {
     HallModel model;
     model.kind = kind;
@@ -227,14 +228,15 @@ HallCalibrationResult CalibrateHall(const HallCalibrationInput& in,
            n - TrainingSplitSize(n, o.train_fraction) < 2)
       ++n;
     min_poses = min_poses == 0 ? n : std::min(min_poses, n);
+    min_loo = min_loo == 0 ? features + 2 : std::min(min_loo, features + 2);
   }
-  if (in.poses.size() < min_poses)
-    throw std::invalid_argument("CalibrateHall: needs at least " + std::to_string(min_poses) +
-                                " mirror poses (a training split of " +
-                                std::to_string(static_cast<int>(o.train_fraction * 100)) +
-                                " % with more poses than the simplest model's features, and two "
-                                "test poses), got " +
-                                std::to_string(in.poses.size()));
+  if (in.poses.size() < min_loo)
+    throw std::invalid_argument(
+        "CalibrateHall: needs at least " + std::to_string(min_loo) +
+        " mirror poses (each held out once, the rest more than the simplest model's " +
+        std::to_string(min_loo - 2) + " features; " + std::to_string(min_poses) +
+        " for random splits of " + std::to_string(static_cast<int>(o.train_fraction * 100)) +
+        " %), got " + std::to_string(in.poses.size()));
   HallCalibrationResult r;
   try {
     r.actual_time_base = FitTimeBase(in.actual->clock_edges_us, in.pattern_period_s, o.time_base);
@@ -285,20 +287,26 @@ HallCalibrationResult CalibrateHall(const HallCalibrationInput& in,
   const Eigen::Vector3d scale = OutputScale(in.poses);
   std::mt19937_64 rng(o.seed);
   const size_t n = in.poses.size();
-  const size_t n_train = TrainingSplitSize(n, o.train_fraction);
+  r.leave_one_out = n < min_poses;
+  r.repetitions = r.leave_one_out ? static_cast<int>(n) : o.repetitions;
+  r.min_poses_for_splits = static_cast<int>(min_poses);
+  const size_t n_train = r.leave_one_out ? n - 1 : TrainingSplitSize(n, o.train_fraction);
   // The splits (poses and the foregrounds of their readings), kept for a second pass of fits.
   struct Split {
     std::vector<PoseSample> train, test;
     Foreground fg_train, fg_test;
   };
   std::vector<Split> splits;
-  splits.reserve(static_cast<size_t>(o.repetitions));
+  splits.reserve(static_cast<size_t>(r.repetitions));
   Mapped a_train, a_test, b_train, b_test;
-  for (int rep = 0; rep < o.repetitions; ++rep) {
+  for (int rep = 0; rep < r.repetitions; ++rep) {
     std::vector<size_t> idx(n);
     std::iota(idx.begin(), idx.end(), 0);
-    for (size_t i = n - 1; i > 0; --i)
-      std::swap(idx[i], idx[static_cast<size_t>(Uniform(rng) * (i + 1))]);
+    if (r.leave_one_out)  // pose rep last: the test split
+      std::rotate(idx.begin() + rep, idx.begin() + rep + 1, idx.end());
+    else
+      for (size_t i = n - 1; i > 0; --i)
+        std::swap(idx[i], idx[static_cast<size_t>(Uniform(rng) * (i + 1))]);
     Split sp;
     for (size_t i = 0; i < n; ++i) (i < n_train ? sp.train : sp.test).push_back(in.poses[idx[i]]);
     SplitReadings(actual, o.train_fraction, rng, &a_train, &a_test);
@@ -333,7 +341,7 @@ HallCalibrationResult CalibrateHall(const HallCalibrationInput& in,
         dts[m].push_back(fitted.model.delta_t_s);
       }
       if (progress && o.on_repetition)
-        o.on_repetition(static_cast<int>(&sp - splits.data()) + 1, o.repetitions);
+        o.on_repetition(static_cast<int>(&sp - splits.data()) + 1, r.repetitions);
     }
     if (std::none_of(usable.begin(), usable.end(), [](bool u) { return u; })) {
       std::string why;
@@ -347,14 +355,14 @@ HallCalibrationResult CalibrateHall(const HallCalibrationInput& in,
       if (!usable[m]) continue;
       ModelStats s;
       s.kind = o.models[m];
-      const double reps = static_cast<double>(o.repetitions);
-      for (int k = 0; k < o.repetitions; ++k) {
+      const double reps = static_cast<double>(r.repetitions);
+      for (int k = 0; k < r.repetitions; ++k) {
         s.test_rms_mean += test_rms[m][k] / reps;
         s.train_rms_mean += train_rms[m][k] / reps;
         s.delta_t_mean_s += dts[m][k] / reps;
       }
       s.split_delta_t_s = dts[m];
-      for (int k = 0; k < o.repetitions; ++k) {
+      for (int k = 0; k < r.repetitions; ++k) {
         s.test_rms_std += (test_rms[m][k] - s.test_rms_mean).cwiseAbs2() / reps;
         s.delta_t_std_s += (dts[m][k] - s.delta_t_mean_s) * (dts[m][k] - s.delta_t_mean_s) / reps;
       }
@@ -386,7 +394,7 @@ HallCalibrationResult CalibrateHall(const HallCalibrationInput& in,
   for (const auto& s : r.table)
     if (s.kind != HallModelKind::kSine && (!steady || s.delta_t_std_s < steady->delta_t_std_s))
       steady = &s;
-  if (in.fast_frequency_hz > 0 && o.repetitions > 1) {
+  if (in.fast_frequency_hz > 0 && r.repetitions > 1) {
     double centre = 0;
     r.bracket = ChooseDeltaTBracket(steady ? steady->delta_t_mean_s : 0.0,
                                     steady ? steady->delta_t_std_s : HUGE_VAL, r.drive_phase,

@@ -107,6 +107,12 @@ struct HallCalibrationResult {
   // CalibrateHall throws.
   std::vector<ModelStats> table;
   std::vector<std::string> skipped_models;
+  // How the table was evaluated: options.repetitions random splits of options.train_fraction,
+  // or, with fewer poses than such a split needs (min_poses_for_splits), leave-one-out: one
+  // repetition per pose, each held out once (repetitions = the number of poses).
+  bool leave_one_out = false;
+  int repetitions = 0;
+  int min_poses_for_splits = 0;
   // The model with the lowest held-out chi-square (OutputScale in the .cc).
   HallModelKind best = HallModelKind::kLinear;
   HallFitResult final_fit;  // best model refitted on every pose and reading

@@ -224,9 +224,16 @@ std::string FormatTableTwo(const hall::HallCalibrationResult& r,
                            const hall::HallCalibrationOptions& o) {
   std::ostringstream s;
   char line[256];
-  std::snprintf(line, sizeof line,
-                "Table II (%d random %.0f:%.0f train/test splits, RMS +- std over splits)\n",
-                o.repetitions, o.train_fraction * 10, (1 - o.train_fraction) * 10);
+  if (r.leave_one_out)
+    std::snprintf(line, sizeof line,
+                  "Table II (leave-one-out over %d poses, fewer than the %d that random %.0f:%.0f "
+                  "splits need; RMS +- std over the held-out poses)\n",
+                  r.repetitions, r.min_poses_for_splits, o.train_fraction * 10,
+                  (1 - o.train_fraction) * 10);
+  else
+    std::snprintf(line, sizeof line,
+                  "Table II (%d random %.0f:%.0f train/test splits, RMS +- std over splits)\n",
+                  r.repetitions, o.train_fraction * 10, (1 - o.train_fraction) * 10);
   s << line;
   std::snprintf(line, sizeof line, "%-10s %20s %20s %20s %14s\n", "model", "alpha (deg)",
                 "beta (deg)", "trans (mm)", "dt (ms)");

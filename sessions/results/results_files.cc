@@ -708,7 +708,8 @@ std::string FormatHallModelYaml(const hall::HallCalibrationResult& r,
   if (!ph.reason.empty()) dp["reason"] = ph.reason;
   to["drive_phase"] = dp;
   y["time_offset"] = to;
-  y["protocol"]["repetitions"] = o.repetitions;
+  y["protocol"]["evaluation"] = r.leave_one_out ? "leave-one-out" : "random splits";
+  y["protocol"]["repetitions"] = r.repetitions;
   y["protocol"]["train_fraction"] = common::ShortestDouble(o.train_fraction);
   y["protocol"]["seed"] = o.seed;
   const hall::TimeBase& tb = r.actual_time_base;

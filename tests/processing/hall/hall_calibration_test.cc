@@ -91,13 +91,17 @@ TEST(HallModel, ModelsWithTooManyParametersForTheSplitsAreLeftOutAndNamed) {
   EXPECT_NE(r.best, HallModelKind::kCubic);
   EXPECT_EQ(r.final_fit.model.kind, r.best);
   // Only models that cannot be fitted at all make the calibration fail, naming why: the
-  // cubic model alone needs a training split of more than its 20 features (26 poses at 80 %).
+  // cubic model alone needs a training split of more than its 20 features (26 poses at 80 %,
+  // 22 held out one at a time).
   o.models = {HallModelKind::kCubic};
   try {
     CalibrateHall(MakeInput(rig, actual, background, rig.Poses(16, 0.02, 0.005, 33)), o);
     FAIL() << "no model can be fitted";
   } catch (const std::invalid_argument& e) {
-    EXPECT_NE(std::string(e.what()).find("needs at least 26 mirror poses"), std::string::npos)
+    // 21 poses with one held out leave 20, as many as its features: 22 are needed.
+    EXPECT_NE(std::string(e.what()).find("needs at least 22 mirror poses"), std::string::npos)
+        << e.what();
+    EXPECT_NE(std::string(e.what()).find("26 for random splits of 80 %"), std::string::npos)
         << e.what();
   }
 }
@@ -235,8 +239,51 @@ TEST(HallModel, OptionsAndInputErrorsAreClear) {
     CalibrateHall(in, {});
     FAIL();
   } catch (const std::invalid_argument& e) {
-    EXPECT_NE(std::string(e.what()).find("at least 8 mirror poses"), std::string::npos);
+    EXPECT_NE(std::string(e.what()).find("needs at least 6 mirror poses (each held out once, the "
+                                         "rest more than the simplest model's 4 features; 8 for "
+                                         "random splits of 80 %), got 5"),
+              std::string::npos)
+        << e.what();
   }
+}
+
+// A session with fewer scan poses than an 8:2 split needs (8: a scene whose trigger pattern has 6
+// or 7 triggers) is still calibrated: each pose is held out once, the models that the remaining
+// poses can determine are compared, and dt is found as with many poses. Before session 22 it was
+// refused ("needs at least 8 mirror poses").
+TEST(HallModel, FewerPosesThanASplitNeedsAreEvaluatedLeaveOneOut) {
+  SyntheticHallRig rig;
+  const auto actual = rig.Record(30, true, 51);
+  const auto background = rig.Record(15, false, 52);
+  for (const size_t n : {6u, 7u}) {
+    SCOPED_TRACE(n);
+    HallCalibrationOptions o;
+    const HallCalibrationResult r =
+        CalibrateHall(MakeInput(rig, actual, background, rig.Poses(n, 0.01, 0.003, 53)), o);
+    EXPECT_TRUE(r.leave_one_out);
+    EXPECT_EQ(r.repetitions, static_cast<int>(n));
+    EXPECT_EQ(r.min_poses_for_splits, 8);
+    // Linear and sine (4 features) fit n - 1 poses; quadratic (10) and cubic (20) cannot.
+    ASSERT_EQ(r.table.size(), 2u);
+    EXPECT_EQ(r.skipped_models.size(), 2u);
+    for (const ModelStats& m : r.table) {
+      ASSERT_EQ(m.split_delta_t_s.size(), n);
+      // Held-out errors: finite and not below the training error by much.
+      for (int k = 0; k < 3; ++k) {
+        EXPECT_TRUE(std::isfinite(m.test_rms_mean[k]));
+        EXPECT_GT(m.test_rms_mean[k], 0.5 * m.train_rms_mean[k]) << ToString(m.kind) << " " << k;
+      }
+    }
+    EXPECT_TRUE(r.delta_t.identified()) << r.delta_t.reason;
+    EXPECT_NEAR(r.delta_t.delta_t_s, rig.delay_s, 50e-6);
+  }
+  // Many poses: random splits as before.
+  HallCalibrationOptions o;
+  o.repetitions = 3;
+  const HallCalibrationResult r =
+      CalibrateHall(MakeInput(rig, actual, background, rig.Poses(8, 0.01, 0.003, 53)), o);
+  EXPECT_FALSE(r.leave_one_out);
+  EXPECT_EQ(r.repetitions, 3);
 }
 
 }  // namespace

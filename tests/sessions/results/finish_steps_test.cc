@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <iterator>
 #include <nlohmann/json.hpp>
 #include <opencv2/core.hpp>
 
@@ -165,6 +166,23 @@ TEST(FinishSteps, HallCalibrationThenPredictionOnASimulatedFolder) {
   EXPECT_NE(pred.log[0].text.find("actual_clock.csv"), std::string::npos) << pred.log[0].text;
   EXPECT_EQ(pred.poses, rec.hall_actual->readings.size());
   EXPECT_EQ(ReadHallPosesCsv(poses).size(), pred.poses);
+
+  // Seven poses, fewer than a 4:1 split needs: evaluated leave-one-out, and said so in the
+  // heading and in hall_model.yaml's protocol.
+  std::vector<dataset::MirrorPlaneRow> seven = sim::MakeTruth(simulator).mirror_planes;
+  seven.resize(7);
+  WriteMirrorPlanesCsv(dir.path() / "results" / "mirror_planes.csv", seven);
+  const HallCalibrationStepResult loo = RunHallCalibration(dir.path(), options);
+  ASSERT_TRUE(loo.ok()) << loo.error;
+  EXPECT_EQ(loo.text.rfind("Table II (leave-one-out over 7 poses, fewer than the 8 that random "
+                           "8:2 splits need;",
+                           0),
+            0u)
+      << loo.text;
+  std::ifstream yaml(loo.model_file);
+  const std::string text((std::istreambuf_iterator<char>(yaml)), std::istreambuf_iterator<char>());
+  EXPECT_NE(text.find("evaluation: leave-one-out"), std::string::npos) << text;
+  EXPECT_NE(text.find("repetitions: 7"), std::string::npos) << text;
 }
 
 // A full-size simulated session (15 s recordings, 60 triggers): every model of Table II, and dt
