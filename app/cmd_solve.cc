@@ -168,7 +168,7 @@ void RunExplain(const SolveArgs& args, const solver::PipelineOptions& options) {
                                   .c_str()
                             : "NOT FOUND");
     for (const auto& a : m.board_attempts[b])
-      std::printf("  %-12s scale %.3f%s: %s%s%s\n", vision::ToString(a.method), a.scale,
+      std::printf("  %-12s scale %.3f%s: %s%s%s (%.2f s)\n", vision::ToString(a.method), a.scale,
                   a.region.empty()
                       ? ""
                       : (" in " + std::to_string(a.region.width) + "x" +
@@ -178,7 +178,7 @@ void RunExplain(const SolveArgs& args, const solver::PipelineOptions& options) {
                   !a.found     ? "no grid"
                   : a.accepted ? "accepted"
                                : "refused",
-                  a.note.empty() ? "" : ": ", a.note.c_str());
+                  a.note.empty() ? "" : ": ", a.note.c_str(), a.seconds);
   }
   std::vector<vision::DotCandidate> cands;
   vision::DotRejections rej;

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <array>
+#include <chrono>
 #include <cmath>
 #include <numeric>
 #include <opencv2/calib3d.hpp>
@@ -439,7 +440,10 @@ std::optional<CheckerboardDetection> DetectCheckerboard(const cv::Mat& image, Bo
     }
     BoardAttempt attempt{method, scale, false, false, "", region, textured};
     std::vector<cv::Point2f> found;
+    const auto started = std::chrono::steady_clock::now();
     attempt.found = RunDetector(gray, size, method, scale, region, &found);
+    attempt.seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
     if (k < hinted && attempt.found) board_in_hint_region = true;
     if (!attempt.found) {
       if (attempts) attempts->push_back(attempt);

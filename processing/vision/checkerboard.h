@@ -104,6 +104,7 @@ struct BoardAttempt {
   std::string note;       // why a found grid was refused (or that it was accepted as rough)
   cv::Rect region;        // the region it ran on (empty: the whole image)
   bool textured = false;  // that region is one of TexturedRegions' (else a hint's)
+  double seconds = 0;     // the detector's wall time (diagnostics only: --explain)
 };
 
 // The parts of an 8-bit grey image that look like a checkerboard, largest first: where the

@@ -89,7 +89,7 @@ grep -q "kept (Gaussian fit)" "$dir/explain"
 "$msmcal" solve "$dir/s" --explain step2/0002.png > "$dir/explain2" 2>&1
 grep -q "^board hints (boards.hint_from_first_frame" "$dir/explain2"
 grep -Eq "^  world: from step2/0000.png, sb_[a-z]+ at scale [0-9.]+ in [0-9]+x[0-9]+\+[0-9]+\+[0-9]+$" "$dir/explain2"
-grep -Eq "^  sb_[a-z]+ +scale [0-9.]+ in [0-9]+x[0-9]+\+[0-9]+\+[0-9]+: accepted$" "$dir/explain2"
+grep -Eq "^  sb_[a-z]+ +scale [0-9.]+ in [0-9]+x[0-9]+\+[0-9]+\+[0-9]+: accepted \([0-9]+\.[0-9]{2} s\)$" "$dir/explain2"
 # Repeated exposures are explained as the solve measures them: the scene's mean, named by its
 # first exposure (average_exposures).
 printf 'camera: {width: 640, height: 512, fx: 520, fy: 520, cx: 319.5, cy: 255.5}\nstep1: {exposures: 2}\n' \

@@ -25,6 +25,30 @@ std::vector<CornerSet> MergeRepeatedViews(const std::vector<CornerSet>& sets,
                                           const std::vector<std::vector<char>>& clear,
                                           int* dropped);
 
+// Corners of a repeated view (as MergeRepeatedViews groups them) that one frame puts off where
+// the view's other frames agree they are: a plate moved in front of part of a board cuts the
+// squares around the corners next to its edge, and the detector still returns those corners,
+// biased (0.1-1 px on scripts/random_scenes.py seed 118, where the sliding plate overlapped the
+// world board's last column of squares in 8 of 24 step 1 frames). Per view of at least
+// `min_frames` frames: each corner's median position over the frames where it is clear (after
+// each frame's median shift, so that a camera that moved a little is not taken for occlusion);
+// a frame's corner farther than max(k_sigma * s, min_threshold_px) from it, s the view's robust
+// per-axis scatter (the median distance / 1.1774, Rayleigh), is marked not clear in `clear`.
+// Corners clear in fewer than `min_frames` frames are left as they are.
+struct CornerConsistencyOptions {
+  int min_frames = 3;
+  double k_sigma = 5.0;
+  double min_threshold_px = 0.05;
+};
+struct CornerConsistency {
+  int marked = 0;               // corner observations marked not clear
+  int frames_affected = 0;      // of the sets given
+  double max_threshold_px = 0;  // the largest threshold a view used
+};
+CornerConsistency MarkInconsistentCorners(const std::vector<CornerSet>& sets,
+                                          std::vector<std::vector<char>>* clear,
+                                          const CornerConsistencyOptions& options = {});
+
 struct MleEstimate {
   Observations obs;  // as given, with repeated views merged
   MleResult mle;

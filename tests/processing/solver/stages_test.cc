@@ -532,6 +532,51 @@ TEST(EstimateStage, MergesRepeatedViewsOverTheirClearCorners) {
   EXPECT_EQ(merged[0].px[0], Eigen::Vector2d(10.5, 9.5));
 }
 
+// A static board seen in six frames (sigma 0.02 px per axis): frame 3 shifted whole by
+// (0.3, -0.2) px (the camera moved a little) keeps every corner; frames 4 and 5 put corners 7
+// and 8 0.4 px off (a plate over the squares next to them): those four observations are marked,
+// nothing else. A corner not clear in a frame stays so and is not counted; a view of two frames
+// is not judged.
+TEST(EstimateStage, CornersThatOneFramePutsOffTheirViewsConsensusAreMarked) {
+  std::mt19937 rng(11);
+  std::normal_distribution<double> noise(0.0, 0.02);
+  CornerSet base{BoardView::kC1World, -1, {}, {}};
+  for (int r = 0; r < 4; ++r)
+    for (int c = 0; c < 5; ++c) {
+      base.points_in_board.emplace_back(10.0 * c, 10.0 * r, 0);
+      base.px.emplace_back(100 + 15.0 * c, 200 + 15.0 * r);
+    }
+  std::vector<CornerSet> sets;
+  for (int f = 0; f < 6; ++f) {
+    CornerSet cs = base;
+    for (auto& p : cs.px) p += Eigen::Vector2d(noise(rng), noise(rng));
+    if (f == 3)
+      for (auto& p : cs.px) p += Eigen::Vector2d(0.3, -0.2);
+    if (f >= 4) {
+      cs.px[7] += Eigen::Vector2d(0.4, 0);
+      cs.px[8] += Eigen::Vector2d(0, -0.4);
+    }
+    sets.push_back(cs);
+  }
+  CornerSet other{BoardView::kC1Sliding, 0, base.points_in_board, base.px};
+  sets.push_back(other);
+  other.px[0] += Eigen::Vector2d(2, 0);  // two frames of a view: not judged
+  sets.push_back(other);
+  std::vector<std::vector<char>> clear(sets.size(), std::vector<char>(base.px.size(), 1));
+  clear[0][5] = 0;
+  const CornerConsistency c = MarkInconsistentCorners(sets, &clear);
+  EXPECT_EQ(c.marked, 4);
+  EXPECT_EQ(c.frames_affected, 2);
+  EXPECT_GT(c.max_threshold_px, 0.05);  // 5 sigma of 0.02 px noise, ~0.1 px
+  EXPECT_LT(c.max_threshold_px, 0.2);
+  for (size_t k = 0; k < sets.size(); ++k)
+    for (size_t i = 0; i < base.px.size(); ++i) {
+      const bool off = k >= 4 && k <= 5 && (i == 7 || i == 8);
+      const bool was_cleared = k == 0 && i == 5;
+      EXPECT_EQ(clear[k][i] != 0, !off && !was_cleared) << "frame " << k << " corner " << i;
+    }
+}
+
 TEST(EstimateStage, MleRecoversTheSyntheticTruthAndHomeFrameHasItsConvention) {
   const SyntheticScene sc = MakeSyntheticScene(SmallScene());
   std::vector<std::vector<char>> clear;
