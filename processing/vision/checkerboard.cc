@@ -434,7 +434,8 @@ std::optional<CheckerboardDetection> DetectCheckerboard(const cv::Mat& image, Bo
     if (k >= chain.size()) break;
     const auto [method, scale, chain_region, textured] = chain[k];
     cv::Rect region = chain_region;
-    if (method == BoardMethod::kClassic && k >= hinted && !textured && board_in_hint_region) {
+    if (method == BoardMethod::kClassic && k >= hinted && !textured &&
+        (board_in_hint_region || (hint && hint->fixed && !hint_region.empty()))) {
       if (hint->method == BoardMethod::kClassic && hint->scale == 1.0) continue;
       region = hint_region;
     }

@@ -476,6 +476,8 @@ BoardHints HintsFrom(const ImageMeasurement& m, const vision::CheckerboardOption
   BoardHints hints;
   for (const auto& b : m.boards)
     hints.push_back(b ? std::optional(vision::HintFrom(*b, m.image_size, options)) : std::nullopt);
+  // Board 0 is the world board (MeasureFrame's `boards`): fixed before the camera of its view.
+  if (!hints.empty() && hints[0]) hints[0]->fixed = true;
   return hints;
 }
 

@@ -51,7 +51,8 @@ ImageMeasurement MeasureFrame(const cv::Mat& image, const std::vector<vision::Bo
                               const BoardHints* hints = nullptr);
 
 // The hints a measured image gives the other images of its view (one per board asked for; none
-// for a board it did not show).
+// for a board it did not show). Board 0, the world board, is fixed before its view's camera
+// (BoardHint::fixed); the sliding board moves between poses.
 BoardHints HintsFrom(const ImageMeasurement& m, const vision::CheckerboardOptions& options);
 
 // Where the images of one camera view take their board hints from

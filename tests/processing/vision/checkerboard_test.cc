@@ -271,6 +271,37 @@ TEST(CheckerboardTest, ARoughClassicGridIsJudgedAfterItsRefinement) {
             1);
 }
 
+// A fixed board (the world board before the fixed camera of its view, BoardHint::fixed) can only
+// be where its hint says: where a plate hides part of it, the classic detector, the chain's
+// costliest, runs on the hint's region, not on the whole image (124 s failing on a 1600 x 1200
+// frame of scripts/random_scenes.py seed 118, 0.2 s on the region). A hint that is not fixed
+// (a sliding board, which moves between poses) leaves it the whole image.
+TEST(CheckerboardTest, AFixedBoardsClassicAttemptStaysInItsHintsRegion) {
+  const BoardSize size{7, 4};
+  const double square = 10;
+  const cv::Size image(640, 400);
+  const Eigen::Matrix3d h = BoardToImage(12, 2.2, {180, 150}, size, square, 1e-4);
+  cv::Mat img = RenderBoard(h, size, square, image);
+  const auto first = DetectCheckerboard(img, size);
+  ASSERT_TRUE(first);
+  BoardHint hint = HintFrom(*first, image, {});
+  // A light plate over the board's right third.
+  const Eigen::Vector2d right = first->corners_px[size.cols - 2];
+  cv::rectangle(img, cv::Point(static_cast<int>(right.x()), 0), cv::Point(639, 399),
+                cv::Scalar::all(200), cv::FILLED);
+  auto classic_regions = [&](const BoardHint& h) {
+    std::vector<BoardAttempt> attempts;
+    EXPECT_FALSE(DetectCheckerboard(img, size, {}, cv::Mat(), &attempts, &h).has_value());
+    std::vector<cv::Rect> regions;
+    for (const auto& a : attempts)
+      if (a.method == BoardMethod::kClassic && !a.textured) regions.push_back(a.region);
+    return regions;
+  };
+  EXPECT_EQ(classic_regions(hint), std::vector<cv::Rect>{cv::Rect()});  // the whole image
+  hint.fixed = true;
+  EXPECT_EQ(classic_regions(hint), std::vector<cv::Rect>{hint.region});
+}
+
 // TexturedRegions on a rendered scene: two boards, a bright spot, a straight edge and noise.
 // Each board lies inside a region of its own (the larger board's first); the spot and the edge
 // make none; a flat image and a board too big for any region give none.
