@@ -504,7 +504,12 @@ SessionReport BuildSessionReport(const fs::path& dir, const ReportOptions& optio
   std::vector<dataset::MirrorPlaneRow> planes;
   std::vector<results::ValidationDetailRow> detail;
   // ---------------------------------------------------------------- Table I: planes, validation
-  if (fs::exists(res / "mirror_planes.csv") && fs::exists(res / "summary.json")) {
+  const bool solved_here = results::SummaryJsonHas(res / "summary.json", "mirror_poses");
+  if (fs::exists(res / "mirror_planes.csv") && !solved_here)
+    rep.skipped.push_back(
+        "results/summary.json has no mirror_poses (the mirror planes were not solved in this "
+        "folder): Table I and the plane plots left out");
+  if (fs::exists(res / "mirror_planes.csv") && solved_here) {
     rep.have_planes = true;
     planes = results::ReadMirrorPlanesCsv(res / "mirror_planes.csv");
     rep.planes = static_cast<int>(planes.size());
@@ -747,7 +752,11 @@ SessionReport BuildSessionReport(const fs::path& dir, const ReportOptions& optio
                          pm(c.delta_t_s * 1e3, c.delta_t_std_s * 1e3, "%.3f")});
     }
     t2.caption =
-        "Mean +- std over the random train/test splits (results/hall_model.yaml). Final "
+        "Mean +- std over the " +
+        (model.repetitions > 0 ? std::to_string(model.repetitions) + " " : std::string()) +
+        (model.leave_one_out ? "leave-one-out splits (each pose held out once)"
+                             : "random train/test splits") +
+        " (results/hall_model.yaml). Final "
         "model: " +
         rep.hall_model +
         (rep.delta_t_identified ? ", delta_t " + Fmt("%.4f ms", rep.delta_t_s * 1e3) +

@@ -233,7 +233,8 @@ std::string FormatTableTwo(const hall::HallCalibrationResult& r,
   else
     std::snprintf(line, sizeof line,
                   "Table II (%d random %.0f:%.0f train/test splits, RMS +- std over splits)\n",
-                  r.repetitions, o.train_fraction * 10, (1 - o.train_fraction) * 10);
+                  r.repetitions > 0 ? r.repetitions : o.repetitions, o.train_fraction * 10,
+                  (1 - o.train_fraction) * 10);
   s << line;
   std::snprintf(line, sizeof line, "%-10s %20s %20s %20s %14s\n", "model", "alpha (deg)",
                 "beta (deg)", "trans (mm)", "dt (ms)");

@@ -525,6 +525,21 @@ void WriteHallSummary(const fs::path& file, const hall::HallCalibrationResult& r
   UpdateSummaryJson(file, "hall", std::move(j));
 }
 
+bool SummaryJsonHas(const fs::path& file, const std::string& section) {
+  if (!fs::exists(file)) return false;
+  const JsonFields f(file.string());
+  std::ifstream in(file);
+  if (!in) f.Fail("(file)", "cannot open");
+  nlohmann::json all;
+  try {
+    all = nlohmann::json::parse(in);
+  } catch (const nlohmann::json::parse_error& e) {
+    f.Fail("(file)", std::string("not JSON: ") + e.what());
+  }
+  if (!all.is_object()) f.Fail("(file)", "expected a JSON object");
+  return all.contains(section);
+}
+
 MirrorPosesSummary ReadMirrorPosesSummary(const fs::path& file) {
   const JsonFields f(file.string());
   std::ifstream in(file);
@@ -709,7 +724,7 @@ std::string FormatHallModelYaml(const hall::HallCalibrationResult& r,
   to["drive_phase"] = dp;
   y["time_offset"] = to;
   y["protocol"]["evaluation"] = r.leave_one_out ? "leave-one-out" : "random splits";
-  y["protocol"]["repetitions"] = r.repetitions;
+  y["protocol"]["repetitions"] = r.repetitions > 0 ? r.repetitions : o.repetitions;
   y["protocol"]["train_fraction"] = common::ShortestDouble(o.train_fraction);
   y["protocol"]["seed"] = o.seed;
   const hall::TimeBase& tb = r.actual_time_base;
@@ -865,6 +880,22 @@ HallModelFile ParseHallModelYaml(const std::string& text, const std::string& fil
     number("separation", &e.separation);
     if (to["reason"]) e.reason = Str(to["reason"], file, "time_offset.reason");
     l.time_offset = e;
+  }
+  if (const YAML::Node p = y["protocol"]) {
+    if (!p.IsMap()) Fail(file, "protocol", "expected a mapping");
+    if (p["evaluation"]) {
+      const std::string ev = Str(p["evaluation"], file, "protocol.evaluation");
+      if (ev != "leave-one-out" && ev != "random splits")
+        Fail(file, "protocol.evaluation",
+             "expected 'random splits' or 'leave-one-out', got '" + ev + "'");
+      l.leave_one_out = ev == "leave-one-out";
+    }
+    if (p["repetitions"]) {
+      const double n = Num(p["repetitions"], file, "protocol.repetitions");
+      if (!(n >= 1 && n <= 1e6 && n == std::floor(n)))
+        Fail(file, "protocol.repetitions", "expected a whole number from 1 to 1000000");
+      l.repetitions = static_cast<int>(n);
+    }
   }
   try {
     l.background = hall::PhaseProfile::FromBins(period, std::move(b));

@@ -146,6 +146,9 @@ void WriteMirrorPosesSummary(const std::filesystem::path& file, const MirrorPose
 void UpdateSummaryJson(const std::filesystem::path& file, const std::string& key,
                        nlohmann::json value);
 // Every field is required; a JSON null (how a non-finite number is written) reads as NaN.
+// Whether results/summary.json has the top-level `section` ("mirror_poses", "hall"); false when
+// the file does not exist. Throws naming the file when it is not a JSON object.
+bool SummaryJsonHas(const std::filesystem::path& file, const std::string& section);
 MirrorPosesSummary ReadMirrorPosesSummary(const std::filesystem::path& file);
 
 // ----------------------------------------------------------------------------- Hall results
@@ -179,6 +182,10 @@ struct HallModelFile {
   // time_offset (absent in files written before it): status, model, reason, and the figures
   // written (delta_t_s and sigma_s when identified; NaN when a figure is absent).
   std::optional<hall::DeltaTEstimate> time_offset;
+  // protocol.evaluation and .repetitions: how the comparison was evaluated. Files written
+  // before session 22 have no evaluation: random splits.
+  bool leave_one_out = false;
+  int repetitions = 0;  // 0: not written
 };
 // Errors name the file and the field: "hall_model.yaml: field 'delta_t_s': expected a number
 // (line 3)".

@@ -89,4 +89,25 @@ for f in scalar:root format:format section:parameters bins:bins_uT; do
   grep -q "${f%%:*}.yaml" "$dir/err3" && grep -q "${f#*:}" "$dir/err3" ||
     { echo "${f%%:*}.yaml:"; cat "$dir/err3"; exit 1; }
 done
+# Seven poses, fewer than a 4:1 split needs (8): evaluated leave-one-out and said so in the
+# Table II heading, in hall_model.yaml's protocol and in the report's caption; five are refused
+# with how many are needed.
+head -8 "$dir/s/truth/mirror_planes.csv" > "$dir/s/results/mirror_planes.csv"
+"$msmcal" hall calibrate "$dir/s" > "$dir/loo.out" 2>&1 || { cat "$dir/loo.out"; exit 1; }
+grep -q "^Table II (leave-one-out over 7 poses, fewer than the 8 that random 8:2 splits need" \
+  "$dir/loo.out" || { cat "$dir/loo.out"; exit 1; }
+/usr/bin/python3 - "$dir/s/results/hall_model.yaml" <<'PY'
+import sys, yaml
+p = yaml.safe_load(open(sys.argv[1]))["protocol"]
+assert p["evaluation"] == "leave-one-out" and p["repetitions"] == 7, p
+PY
+# The report on this folder (planes given, not solved here: no mirror_poses in summary.json)
+# leaves Table I out and says why, and Table II's caption names the leave-one-out splits.
+"$msmcal" report "$dir/s" > "$dir/report.out" 2>&1 || { cat "$dir/report.out"; exit 1; }
+grep -q "Mean +- std over the 7 leave-one-out splits (each pose held out once)" "$dir/s/report.html"
+grep -q "summary.json has no mirror_poses (the mirror planes were not solved in this folder)" \
+  "$dir/s/report.html"
+head -6 "$dir/s/truth/mirror_planes.csv" > "$dir/s/results/mirror_planes.csv"
+if "$msmcal" hall calibrate "$dir/s" > "$dir/five" 2>&1; then echo "expected a failure"; exit 1; fi
+grep -q "needs at least 6 mirror poses" "$dir/five" || { cat "$dir/five"; exit 1; }
 echo "1 passed, 0 failed"

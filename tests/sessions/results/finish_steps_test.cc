@@ -183,6 +183,11 @@ TEST(FinishSteps, HallCalibrationThenPredictionOnASimulatedFolder) {
   const std::string text((std::istreambuf_iterator<char>(yaml)), std::istreambuf_iterator<char>());
   EXPECT_NE(text.find("evaluation: leave-one-out"), std::string::npos) << text;
   EXPECT_NE(text.find("repetitions: 7"), std::string::npos) << text;
+  const HallModelFile loo_file = ReadHallModelYaml(loo.model_file);
+  EXPECT_TRUE(loo_file.leave_one_out);
+  EXPECT_EQ(loo_file.repetitions, 7);
+  EXPECT_FALSE(file.leave_one_out);  // the first calibration's: 3 random splits
+  EXPECT_EQ(file.repetitions, 3);
 }
 
 // A full-size simulated session (15 s recordings, 60 triggers): every model of Table II, and dt

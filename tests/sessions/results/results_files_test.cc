@@ -523,7 +523,20 @@ TEST(HallModelYaml, AWrongShapeNamesTheFileAndTheField) {
   const size_t at = bins.find("bins_uT:");
   ASSERT_NE(at, std::string::npos) << good;
   bins = bins.substr(0, at) + "bins_uT: {a: 1}\n";
+  auto replaced = [&](const std::string& from, const std::string& to) {
+    std::string t = good;
+    const size_t p = t.find(from);
+    EXPECT_NE(p, std::string::npos) << from;
+    return p == std::string::npos ? t : t.replace(p, from.size(), to);
+  };
+  // The protocol as written: random splits, the options' repetitions (50).
+  EXPECT_FALSE(ParseHallModelYaml(good, "m.yaml").leave_one_out);
+  EXPECT_EQ(ParseHallModelYaml(good, "m.yaml").repetitions, 50);
   const std::pair<std::string, std::string> cases[] = {
+      {replaced("evaluation: random splits", "evaluation: bootstrap"),
+       "field 'protocol.evaluation': expected 'random splits' or 'leave-one-out', got 'bootstrap'"},
+      {replaced("repetitions: 50", "repetitions: 2.5"),
+       "field 'protocol.repetitions': expected a whole number from 1 to 1000000"},
       {"abc\n", "field '(root)': expected a mapping"},
       {"- 1\n", "field '(root)': expected a mapping"},
       {"format: [1, 2]\n", "field 'format': expected a text"},
