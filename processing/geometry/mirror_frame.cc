@@ -11,7 +11,8 @@ Rigid3d MirrorHomeFrame(const Eigen::Vector3d& neutral_normal, const Eigen::Vect
                         const Eigen::Vector3d& centre) {
   const Eigen::Vector3d z = neutral_normal.normalized();
   Eigen::Vector3d x = fast_axis - fast_axis.dot(z) * z;
-  if (x.norm() < 1e-9) throw std::invalid_argument("MirrorHomeFrame: fast axis parallel to the normal");
+  if (x.norm() < 1e-9)
+    throw std::invalid_argument("MirrorHomeFrame: fast axis parallel to the normal");
   x.normalize();
   const double along_x = x.dot(Eigen::Vector3d::UnitX());
   if (std::abs(along_x) >= 0.1) {
@@ -67,6 +68,11 @@ Eigen::Vector3d FastAxisFromPlanes(const std::vector<Plane>& planes) {
   for (size_t i = 0; i < planes.size(); ++i) a.row(i) = planes[i].n.transpose();
   Eigen::JacobiSVD<Eigen::MatrixXd> svd(a, Eigen::ComputeFullV);
   return svd.matrixV().col(2);
+}
+
+Eigen::Vector3d FastAxisWithNeutral(const Plane& neutral, const std::vector<Plane>& fast_only) {
+  if (fast_only.size() == 1) return FastAxisFromPlanes({neutral, fast_only[0]});
+  return FastAxisFromPlanes(fast_only);
 }
 
 }  // namespace msmcal::geometry

@@ -42,6 +42,10 @@ Eigen::Vector3d RotationCentreFromPlanes(const std::vector<Plane>& planes_in_wor
 
 // Fast axis e_F as the direction orthogonal to all fast-only normals (smallest singular vector
 // of the stacked normals), unsigned.
+// The fast axis from the fast-only planes (FastAxisFromPlanes); from a single fast-only plane,
+// with the neutral plane: the neutral pose lies on the fast-only trajectory (the fast axis at
+// zero), so its normal is perpendicular to the axis too. Needs at least one fast-only plane.
+Eigen::Vector3d FastAxisWithNeutral(const Plane& neutral, const std::vector<Plane>& fast_only);
 Eigen::Vector3d FastAxisFromPlanes(const std::vector<Plane>& fast_only_planes_in_world);
 
 }  // namespace msmcal::geometry

@@ -35,7 +35,8 @@ geometry::Rigid3d Mirror0FromPlanes(const std::vector<Plane>& planes, const Plan
   std::vector<Plane> fast, scan;
   for (int p : roles.fast_only) fast.push_back(planes[p]);
   for (int p : roles.scan) scan.push_back(planes[p]);
-  return HomeFrame(planes[roles.neutral], geometry::FastAxisFromPlanes(fast), scan);
+  return HomeFrame(planes[roles.neutral],
+                   geometry::FastAxisWithNeutral(planes[roles.neutral], fast), scan);
 }
 
 Mirror0 EstimateMirror0(const std::vector<std::pair<Step2Kind, int>>& plane_keys,

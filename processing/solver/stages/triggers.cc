@@ -179,8 +179,9 @@ TriggerAssignment AssignTriggerSlots(const std::vector<Step2View>& s2, std::vect
     return out;
   }
   n0.normalize();
-  const Eigen::Vector3d fast0 =
-      fast_planes.size() >= 2 ? geometry::FastAxisFromPlanes(fast_planes) : TangentBasis(n0).col(0);
+  const Eigen::Vector3d fast0 = !fast_planes.empty()
+                                    ? geometry::FastAxisWithNeutral(Plane{n0, 0.0}, fast_planes)
+                                    : TangentBasis(n0).col(0);
   const Rigid3d provisional = geometry::MirrorHomeFrame(n0, fast0, Eigen::Vector3d::Zero());
   auto angles_of = [&](const Plane& p) {
     const auto pose = geometry::PoseFromWorldPlane(provisional, p);
@@ -301,11 +302,35 @@ MirrorPlanes CollectMirrorPlanes(const std::vector<Step2View>& s2, const std::ve
     if (kind == Step2Kind::kFastOnly) ++out.num_fast_only;
     if (kind == Step2Kind::kScan) ++out.num_scan;
   }
-  if (out.num_neutral == 0)
+  if (out.num_neutral == 0) {
     out.log.error = "step2: no usable neutral frame (needed for {0})";
-  else if (out.num_fast_only < 2)
-    out.log.error = "step2: " + std::to_string(out.num_fast_only) +
-                    " usable fast_only mirror planes; {0} needs >= 2";
+  } else if (out.num_fast_only == 0) {
+    out.log.error = "step2: no usable fast_only mirror plane; {0} needs >= 1 (>= 2 preferred)";
+  } else if (out.num_fast_only == 1) {
+    // {0}'s fast axis from that plane and the neutral one (geometry::FastAxisWithNeutral): they
+    // must be tilted apart for the axis to be determined.
+    double tilt_deg = 0;
+    const Plane* neutral = nullptr;
+    for (const auto& g : groups)
+      if (s2[g.frame].frame.kind == Step2Kind::kNeutral) neutral = &g.plane;
+    for (const auto& g : groups)
+      if (neutral && s2[g.frame].frame.kind == Step2Kind::kFastOnly) {
+        const double a = geometry::AngleBetween(neutral->n, g.plane.n) * common::kDegPerRad;
+        tilt_deg = std::min(a, 180 - a);
+      }
+    std::ostringstream msg;
+    msg << "step2: 1 usable fast_only mirror plane, " << tilt_deg << " deg from the neutral";
+    if (tilt_deg < kMinSingleFastOnlyTiltDeg)
+      out.log.error = msg.str() +
+                      ": {0}'s fast axis needs a second fast_only plane or one tilted "
+                      "at least " +
+                      std::to_string(kMinSingleFastOnlyTiltDeg).substr(0, 3) +
+                      " deg from the neutral";
+    else
+      out.log.notes.push_back(msg.str() +
+                              ": {0}'s fast axis from it and the neutral plane (one fast_only "
+                              "plane; two or more give it on their own)");
+  }
   return out;
 }
 

@@ -69,8 +69,12 @@ struct MirrorPlanes {
   std::vector<ReflectedDot> estimate_dots;               // the estimate beams' dots, for the MLE
   std::vector<ReflectedDot> validation_dots;             // the held-out beams' dots
   int num_neutral = 0, num_fast_only = 0, num_scan = 0;
-  StageLog log;  // fails without a neutral plane or with fewer than 2 fast-only planes
+  StageLog log;  // fails without a neutral plane, without a fast-only plane, or with one that
+                 // is within kMinSingleFastOnlyTiltDeg of the neutral
 };
+// With a single fast-only plane {0}'s fast axis comes from it and the neutral plane
+// (geometry::FastAxisWithNeutral); closer than this they do not determine it.
+inline constexpr double kMinSingleFastOnlyTiltDeg = 0.5;
 MirrorPlanes CollectMirrorPlanes(const std::vector<Step2View>& views,
                                  const std::vector<Group>& groups, const BeamTable& beams);
 

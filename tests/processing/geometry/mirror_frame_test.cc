@@ -73,6 +73,13 @@ TEST(MirrorHomeFrame, CentreAndFastAxisFromPlanes) {
   }
   EXPECT_LT((RotationCentreFromPlanes(all) - centre).norm(), 1e-9);
   EXPECT_NEAR(std::abs(FastAxisFromPlanes(fast_only).x()), 1.0, 1e-9);
+  // One fast-only plane (0.05 rad about X) with the neutral one (Z): the axis is still X; two or
+  // more fast-only planes give it without the neutral.
+  const Plane neutral = Plane::FromPointNormal(centre, Eigen::Vector3d::UnitZ());
+  EXPECT_NEAR(std::abs(FastAxisWithNeutral(neutral, {fast_only[3]}).x()), 1.0, 1e-9);
+  const Plane tilted_neutral = Plane::FromPointNormal(centre, Eigen::Vector3d(0, 0.3, 1));
+  EXPECT_NEAR(std::abs(FastAxisWithNeutral(tilted_neutral, fast_only).x()), 1.0, 1e-9);
+  EXPECT_THROW(FastAxisWithNeutral(neutral, {}), std::invalid_argument);
 }
 
 }  // namespace

@@ -502,8 +502,22 @@ TEST(TriggersStage, CollectsOnePlanePerKindAndTriggerIndex) {
     for (int b = 0; b < 3; ++b) g.dot_of_beam[b] = b;
     groups.push_back(g);
   }
+  // One fast-only plane: {0}'s fast axis from it and the neutral plane, when they are tilted
+  // apart (at least kMinSingleFastOnlyTiltDeg); here both planes are the same, then 2 deg apart.
   const MirrorPlanes one_fast = CollectMirrorPlanes(views, groups, beams);
-  EXPECT_EQ(one_fast.log.error, "step2: 1 usable fast_only mirror planes; {0} needs >= 2");
+  EXPECT_EQ(one_fast.log.error,
+            "step2: 1 usable fast_only mirror plane, 0 deg from the neutral: {0}'s fast axis needs "
+            "a second fast_only plane or one tilted at least 0.5 deg from the neutral");
+  groups[1].plane.n =
+      Eigen::AngleAxisd(2 * M_PI / 180, Eigen::Vector3d::UnitX()) * groups[0].plane.n;
+  const MirrorPlanes tilted = CollectMirrorPlanes(views, groups, beams);
+  EXPECT_TRUE(tilted.log.error.empty()) << tilted.log.error;
+  ASSERT_EQ(tilted.log.notes.size(), 1u);
+  EXPECT_EQ(tilted.log.notes[0].rfind("step2: 1 usable fast_only mirror plane, 2 deg from the "
+                                      "neutral: {0}'s fast axis from it and the neutral plane",
+                                      0),
+            0u)
+      << tilted.log.notes[0];
   views[2].frame.kind = Step2Kind::kFastOnly;
   groups.push_back(groups[2]);  // the same (kind, j) again: the same plane
   const MirrorPlanes out = CollectMirrorPlanes(views, groups, beams);
