@@ -237,19 +237,16 @@ void DotsOverStaticBackground(const std::vector<std::vector<size_t>>& groups,
     const auto& m = (*measured)[i];
     return sizes[i].size() == 2 ? m.boards[1] : m.boards[0];
   };
-  // How far a count is from what the frame shows. Step 1 shows one dot per listed beam: a
-  // surplus there is residue taken for a spot, and the frame is measured again; a step 2
-  // surplus is left to the grouping (only a shortfall is), but the pass must not add blobs
-  // beyond the expected count either. A step 1 frame is measured this way only if each of its
+  // How far a count is from what the frame shows (one dot per listed beam and trigger). A
+  // shortfall or a surplus (residue or texture taken for a spot: the data-driven second pass
+  // on dim small spots finds board texture too) is measured again, and the difference is kept
+  // only if it brings the count closer. A step 1 frame is measured this way only if each of its
   // beams is blocked in another image of its pose (else the difference removes its spot).
   auto off_count = [&](size_t i, size_t n) {
     const size_t want = static_cast<size_t>(expected[i]);
     return n > want ? n - want : want - n;
   };
-  auto needs_pass = [&](size_t i, size_t n) {
-    return sizes[i].size() == 2 ? n != static_cast<size_t>(expected[i])
-                                : n < static_cast<size_t>(expected[i]);
-  };
+  auto needs_pass = [&](size_t i, size_t n) { return n != static_cast<size_t>(expected[i]); };
   for (const auto& group : groups) {
     if (group.size() < 2) continue;
     std::vector<size_t> short_frames;
