@@ -976,7 +976,9 @@ std::vector<BackgroundPatch> BackgroundContribution(const cv::Mat& image,
 }
 
 bool RefineDotOnBackground(const DotSignalPatch& own, const BackgroundPatch& background,
-                           const DotOptions& options, Dot* dot) {
+                           const DotOptions& options, Dot* dot, bool allow_curved,
+                           ResponseTrial* trial) {
+  if (trial) *trial = ResponseTrial{};
   if (background.sum.size() != own.signal.size() || background.count.size() != own.signal.size() ||
       own.level.size() != own.signal.size())
     return false;
@@ -1016,8 +1018,11 @@ bool RefineDotOnBackground(const DotSignalPatch& own, const BackgroundPatch& bac
   constexpr double kMinResponseBend = 0.15;
   Dot curved = fit;
   double gamma_sigma = 0;
-  const double curved_var = FitThroughResponse(rpx, amplitude / full, &curved, &gamma_sigma);
-  if (curved_var > 0 && curved_var <= plain_var / (full * full) &&
+  const double curved_var = allow_curved || trial
+                                ? FitThroughResponse(rpx, amplitude / full, &curved, &gamma_sigma)
+                                : -1.0;
+  if (trial && curved_var > 0) *trial = ResponseTrial{true, curved.response_gamma, gamma_sigma};
+  if (allow_curved && curved_var > 0 && curved_var <= plain_var / (full * full) &&
       std::abs(curved.response_gamma - 1) >
           std::max(kMinResponseBend, kResponseSignificance * gamma_sigma) &&
       (curved.px - dot->centroid_px).norm() <= options.max_fit_shift_px)

@@ -230,8 +230,19 @@ std::vector<BackgroundPatch> BackgroundContribution(const cv::Mat& image,
 // level = full x (b^(1/gamma) + A g)^gamma (b: the measured background, in units of full scale;
 // g the Gaussian), gamma fitted; it is kept where gamma differs from 1 by more than 3 of its
 // sigmas and the residuals are no worse (a linear camera gives gamma ~ 1: the plain fit stays).
+// The curved fit as RefineDotOnBackground tried it, whether or not it was kept: a camera's
+// response is one for all its spots, so a caller can pool these over many dots and refit with
+// `allow_curved` false where the pool says the camera is linear (a single dot's gamma can come
+// out 0.2-0.8 from noise, on about one dot in ten of a linear camera, and move it by up to
+// 0.4 px). converged false: no curved fit.
+struct ResponseTrial {
+  bool converged = false;
+  double gamma = 1;
+  double gamma_sigma = 0;
+};
 bool RefineDotOnBackground(const DotSignalPatch& own, const BackgroundPatch& background,
-                           const DotOptions& options, Dot* dot);
+                           const DotOptions& options, Dot* dot, bool allow_curved = true,
+                           ResponseTrial* trial = nullptr);
 
 // Reference pipeline for the benchmark: cv::inRange + connectedComponentsWithStats + moments
 // per component (no intensity weighting, no rejection but size).

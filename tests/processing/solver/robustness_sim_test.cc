@@ -279,6 +279,15 @@ Errors Report(const std::string& label, const SolveRun& r) {
   return e;
 }
 
+// The solve's note on a camera's response (RefineDotsOnBackgrounds): "camera response (step 1):
+// median fitted gamma ... linear, ..." or "... not linear, ..."; empty when it made none.
+std::string ResponseNote(const SolveRun& r, const std::string& step) {
+  for (const auto& n : r.out.notes)
+    if (n.rfind("camera response (" + step + ")", 0) == 0) return n;
+  return "";
+}
+bool SaysLinear(const std::string& note) { return note.find(": linear,") != std::string::npos; }
+
 // ------------------------------------------------------------------ a second image model
 // Applied to the renderer's output: a gamma curve (sensor response), a box PSF on top of the
 // renderer's Gaussian, radial vignetting, and JPEG-like compression (8x8 DCT quantisation).
@@ -326,6 +335,9 @@ TEST(RobustnessSimTest, IndependentLikeSceneSolves) {
   EXPECT_LT(e.normal_rms_deg, 0.025);
   EXPECT_LT(e.beam_max_deg, 0.03);
   EXPECT_LT(r.out.rms_normalised_validation, 2.0);
+  // The renderer's response is linear, and the pooled gammas of both camera positions say so.
+  EXPECT_TRUE(SaysLinear(ResponseNote(r, "step 1"))) << ResponseNote(r, "step 1");
+  EXPECT_TRUE(SaysLinear(ResponseNote(r, "step 2"))) << ResponseNote(r, "step 2");
 }
 
 TEST(RobustnessSimTest, SecondImageModelSolves) {
@@ -351,6 +363,12 @@ TEST(RobustnessSimTest, SecondImageModelSolves) {
   EXPECT_EQ(r.out.num_scan_planes, static_cast<int>(r.sim->triggers().size()));
   EXPECT_LT(e.normal_rms_deg, 0.5);
   EXPECT_LT(e.beam_max_deg, 0.25);
+  // A gamma of 0.6: the pooled gammas see it.
+  for (const std::string step : {"step 1", "step 2"}) {
+    const std::string note = ResponseNote(r, step);
+    EXPECT_FALSE(note.empty()) << step;
+    EXPECT_FALSE(SaysLinear(note)) << note;
+  }
 }
 
 // A lab's USB camera through V4L2 often delivers MJPEG: the issue 15 scene in mono, JPEG quality
