@@ -245,10 +245,9 @@ void RunExplain(const SolveArgs& args, const solver::PipelineOptions& options) {
       "on the board's plane (margins, roundness in the plane, square corners): %zu of %zu "
       "blobs\n",
       m.dots_on_plane, m.dots.size());
-  // As the solve (stages/measure.cc, DotsOverStaticBackground): a shortfall or a surplus is
-  // measured again, and the solve keeps that pass if it comes closer to the expected count.
-  const bool off = static_cast<int>(m.dots_on_plane) != expected;
-  if (host && off && options.background_dots && !scene.empty()) {
+  // Shown whenever the frame has a static scene: which frames the solve measures this way
+  // depends on the other frames too (stages/measure.cc, DotsOverStaticBackground).
+  if (host && options.background_dots && !scene.empty()) {
     vision::StaticBackground background;
     background.Add(img);
     for (const auto& file : scene) {
@@ -267,8 +266,9 @@ void RunExplain(const SolveArgs& args, const solver::PipelineOptions& options) {
                                              options.dots, &opts, nullptr, &c3);
     std::printf(
         "a third pass on the frame's difference from its static scene (%zu other images; "
-        "threshold %.3g of full scale; step 1 only if each beam is blocked in another image of "
-        "the pose) keeps:\n",
+        "threshold %.3g of full scale; the solve uses it where the count above is off, or where "
+        "a frame of the scene with every beam blocked shows blobs, and it comes closer; step 1 "
+        "only if each beam is blocked in another image of the pose) keeps:\n",
         background.count() - 1, opts.threshold_fraction);
     int n = 0;
     for (const auto& c : c3)

@@ -1015,7 +1015,6 @@ bool RefineDotOnBackground(const DotSignalPatch& own, const BackgroundPatch& bac
   // And by more than kMinResponseBend: a linear camera's clipped spots fit gamma within
   // about 0.1 of 1 (the curve then only mimics the flat top that the censoring models).
   constexpr double kResponseSignificance = 3.0;
-  constexpr double kMinResponseBend = 0.15;
   Dot curved = fit;
   double gamma_sigma = 0;
   const double curved_var = allow_curved || trial

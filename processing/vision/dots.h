@@ -235,6 +235,9 @@ std::vector<BackgroundPatch> BackgroundContribution(const cv::Mat& image,
 // `allow_curved` false where the pool says the camera is linear (a single dot's gamma can come
 // out 0.2-0.8 from noise, on about one dot in ten of a linear camera, and move it by up to
 // 0.4 px). converged false: no curved fit.
+// How far from 1 a fitted gamma must be before a response curve is taken (per dot here, per
+// camera by a caller pooling the trials): a linear camera's clipped spots fit within about 0.1.
+inline constexpr double kMinResponseBend = 0.15;
 struct ResponseTrial {
   bool converged = false;
   double gamma = 1;

@@ -9,6 +9,7 @@
 #include <functional>
 #include <map>
 #include <opencv2/core/utility.hpp>
+#include <optional>
 #include <sstream>
 #include <thread>
 
@@ -318,7 +319,7 @@ void DotsOverStaticBackground(const std::vector<std::vector<size_t>>& groups,
 // background sums are added in image order, so the result does not depend on the scheduling.
 // Dots without a dot-free view of every window pixel keep their first measurement.
 void RefineDotsOnBackgrounds(const std::vector<std::vector<size_t>>& groups,
-                             const std::vector<int>& camera_of_group,
+                             const std::vector<std::string>& camera_of_group,
                              const std::vector<std::string>& files, const ImageLoader& load,
                              const vision::DotOptions& dot_options, int threads,
                              std::vector<ImageMeasurement>* measured,
@@ -360,12 +361,16 @@ void RefineDotsOnBackgrounds(const std::vector<std::vector<size_t>>& groups,
       own[i].push_back(vision::ReadDotSignal(img, vision::DotFitWindow(d, img.size(), dot_options),
                                              interpolated));
   });
-  // Each window's background, kept for the second round; each camera's fitted gammas.
-  std::vector<std::vector<vision::BackgroundPatch>> backgrounds(groups.size());
-  std::map<int, std::vector<double>> gammas;
+  // Each window's background (kept for the non-linear case) and its plain fit; each camera's
+  // fitted gammas (the curved fit tried on every dot, kept nowhere yet).
+  struct Refit {
+    vision::BackgroundPatch background;
+    std::optional<vision::Dot> plain;  // empty: no dot-free view of the window, or no fit
+  };
+  std::vector<std::vector<Refit>> refits(groups.size());
+  std::map<std::string, std::vector<double>> gammas;
   for (size_t g = 0; g < groups.size(); ++g) {
     if (windows[g].empty()) continue;
-    backgrounds[g].resize(windows[g].size());
     bool same_size = true;
     cv::Size size;
     for (size_t i : groups[g]) {
@@ -374,35 +379,34 @@ void RefineDotsOnBackgrounds(const std::vector<std::vector<size_t>>& groups,
       same_size = same_size && sizes[i] == size;
     }
     if (!same_size) continue;
+    refits[g].resize(windows[g].size());
     for (size_t w = 0; w < windows[g].size(); ++w) {
-      vision::BackgroundPatch bg;
+      Refit& r = refits[g][w];
       for (size_t i : groups[g])
-        if (!contribution[i].empty()) bg.Add(contribution[i][w]);
-      backgrounds[g][w] = std::move(bg);
-      // The curved fit tried on a copy: its gamma joins the camera's pool.
+        if (!contribution[i].empty()) r.background.Add(contribution[i][w]);
       const Window& win = windows[g][w];
-      vision::Dot copy = (*measured)[win.image].dots[win.dot];
+      vision::Dot plain = (*measured)[win.image].dots[win.dot];
       vision::ResponseTrial trial;
-      if (vision::RefineDotOnBackground(own[win.image][win.dot], backgrounds[g][w], dot_options,
-                                        &copy, true, &trial) &&
-          trial.converged)
-        gammas[camera_of_group[g]].push_back(trial.gamma);
+      if (vision::RefineDotOnBackground(own[win.image][win.dot], r.background, dot_options, &plain,
+                                        /*allow_curved=*/false, &trial))
+        r.plain = plain;
+      if (trial.converged) gammas[camera_of_group[g]].push_back(trial.gamma);
     }
   }
   // One response per camera: linear where the median of its dots' fitted gammas is within
-  // kMinResponseBend of 1 (then every dot keeps the plain fit; a single dot's gamma can come out
-  // 0.2-0.8 from noise), else each dot may take the curved fit where its own data say so.
-  constexpr double kMinResponseBend = 0.15;
+  // vision::kMinResponseBend of 1 (every dot keeps the plain fit; a single dot's gamma can come
+  // out 0.2-0.8 from noise), else each dot may take the curved fit where its own data say so
+  // (as RefineDotOnBackground decides alone, also for a camera with too few dots to tell).
   constexpr size_t kMinPool = 5;
-  std::map<int, bool> linear;
+  std::map<std::string, bool> linear;
   for (auto& [camera, pool] : gammas) {
     if (pool.size() < kMinPool) continue;
     std::nth_element(pool.begin(), pool.begin() + pool.size() / 2, pool.end());
     const double median = pool[pool.size() / 2];
-    linear[camera] = std::abs(median - 1) <= kMinResponseBend;
+    linear[camera] = std::abs(median - 1) <= vision::kMinResponseBend;
     std::ostringstream note;
-    note << "camera response (" << (camera == 0 ? "step 1" : "step 2") << "): median fitted gamma "
-         << median << " over " << pool.size() << " dots: "
+    note << "camera response (" << camera << "): median fitted gamma " << median << " over "
+         << pool.size() << " dots: "
          << (linear[camera] ? "linear, every dot fitted without a response curve"
                             : "not linear, each dot fitted through a response curve where its "
                               "own pixels say so");
@@ -410,12 +414,16 @@ void RefineDotsOnBackgrounds(const std::vector<std::vector<size_t>>& groups,
   }
   for (size_t g = 0; g < groups.size(); ++g) {
     const auto it = linear.find(camera_of_group[g]);
-    const bool allow_curved = it == linear.end() || !it->second;
-    for (size_t w = 0; w < windows[g].size() && w < backgrounds[g].size(); ++w) {
-      if (backgrounds[g][w].sum.empty()) continue;
+    const bool is_linear = it != linear.end() && it->second;
+    for (size_t w = 0; w < refits[g].size(); ++w) {
       const Window& win = windows[g][w];
-      vision::RefineDotOnBackground(own[win.image][win.dot], backgrounds[g][w], dot_options,
-                                    &(*measured)[win.image].dots[win.dot], allow_curved);
+      vision::Dot* dot = &(*measured)[win.image].dots[win.dot];
+      if (is_linear) {
+        if (refits[g][w].plain) *dot = *refits[g][w].plain;
+      } else {
+        vision::RefineDotOnBackground(own[win.image][win.dot], refits[g][w].background, dot_options,
+                                      dot);
+      }
     }
   }
 }
@@ -712,8 +720,8 @@ RecordingMeasurement MeasureRecording(const dataset::Recording& rec, const Image
       }
       if (o.dots.centre == vision::DotCentre::kGaussianFit) {
         // Step 1's images (camera position C1) and step 2's (C2: the last group) pool apart.
-        std::vector<int> camera_of_group(static_groups.size(), 0);
-        camera_of_group.back() = 1;
+        std::vector<std::string> camera_of_group(static_groups.size(), "step 1");
+        camera_of_group.back() = "step 2";
         RefineDotsOnBackgrounds(static_groups, camera_of_group, files, load, o.dots,
                                 o.image_threads, &measured, &out.log.notes);
         int on_background = 0, top_hat = 0, centroid = 0;
