@@ -4,7 +4,9 @@
 //
 // Checks: each reader returns or throws std::runtime_error naming the file ("rig.yaml:LINE");
 // Validate() of an accepted generator configuration returns (empty or a message) without
-// throwing.
+// throwing: ParseRigFile calls it first thing after ParseRigGeneratorConfig and turns a message
+// into the file's error (it is not called a second time here: planning the signals walks up to
+// 1 M waveform samples and was most of an execution's time).
 #include <cstdint>
 #include <string>
 
@@ -17,10 +19,7 @@ using namespace msmcal;
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   const std::string text = fuzz::Text(data, size);
-  gen::RigGeneratorConfig config;
-  if (fuzz::Returns([&] { config = gen::ParseRigGeneratorConfig(text, "rig.yaml"); }, "rig.yaml")) {
-    fuzz::MustReturn([&] { (void)config.Validate(); }, "RigGeneratorConfig::Validate");
-  }
+  fuzz::Returns([&] { (void)gen::ParseRigGeneratorConfig(text, "rig.yaml"); }, "rig.yaml");
   fuzz::Returns([&] { (void)hall_mcu::ParseHallMcuConfig(text, "rig.yaml"); }, "rig.yaml");
   fuzz::Returns([&] { (void)rig::ParseRigFile(text, "rig.yaml"); }, "rig.yaml");
   return 0;

@@ -34,6 +34,27 @@ int64_t ToSteps(const char* name, double f_hz, double resolution_hz) {
   return static_cast<int64_t>(rounded);
 }
 
+// A lower bound on the first sample index after `k` at which both drives rise (cos of the phase
+// > 0), for a sample `k` at which at least one does not: each drive that falls at k first has to
+// reach phase 3 pi / 2 (mod 2 pi) again. Two samples of margin cover the rounding of the phase
+// (about 1e-9 rad against a step of at least 2 pi / max_points).
+int64_t FirstPossiblyRisingSample(const SineDrive& fast, const SineDrive& slow, int64_t k,
+                                  double dt) {
+  const double t = static_cast<double>(k) * dt;
+  double wait_s = 0.0;
+  for (const SineDrive* d : {&fast, &slow}) {
+    const double phase = Phase(*d, t);
+    if (std::cos(phase) > 0.0) continue;
+    double u = std::fmod(phase, 2.0 * kPi);
+    if (u < 0.0) u += 2.0 * kPi;
+    const double to_rise = std::max(0.0, 1.5 * kPi - u);
+    wait_s = std::max(wait_s, to_rise / (2.0 * kPi * d->frequency_hz));
+  }
+  const double steps = std::floor(wait_s / dt) - 2.0;
+  if (!(steps > 1.0)) return k + 1;
+  return k + static_cast<int64_t>(std::min(steps, 9e15));
+}
+
 }  // namespace
 
 double SineUnit(const SineDrive& drive, double t_s) { return std::sin(Phase(drive, t_s)); }
@@ -114,12 +135,32 @@ TriggerDesign DesignTriggers(const SineDrive& fast, const SineDrive& slow,
   std::vector<double> sx, sy;  // accepted dots in signal space
   double acc = 0.0;
   double px = SineUnit(fast, 0.0), py = SineUnit(slow, 0.0);
+  // Both sines and the rising test at one sample: one sincos per drive (the walk's hot spot).
+  auto at = [&](double t, double* x, double* y) {
+    double cx = 0.0, cy = 0.0;
+    ::sincos(Phase(fast, t), x, &cx);
+    ::sincos(Phase(slow, t), y, &cy);
+    return cx > 0.0 && cy > 0.0;
+  };
   bool prev_rising = rising(0.0);
   int64_t last_index = -(1LL << 60);
   for (int64_t k = 1; k <= n; ++k) {
+    if (!prev_rising) {
+      // Nothing happens until both drives rise again: jump to just before the first sample
+      // where they can (the walk's state there is the same as after stepping through).
+      const int64_t next = FirstPossiblyRisingSample(fast, slow, k - 1, dt);
+      if (next > n) break;
+      if (next > k) {
+        k = next;
+        const double t_prev = static_cast<double>(k - 1) * dt;
+        px = SineUnit(fast, t_prev);
+        py = SineUnit(slow, t_prev);
+        prev_rising = rising(t_prev);
+      }
+    }
     const double t = static_cast<double>(k) * dt;
-    const double x = SineUnit(fast, t), y = SineUnit(slow, t);
-    const bool now_rising = rising(t);
+    double x = 0.0, y = 0.0;
+    const bool now_rising = at(t, &x, &y);
     const double seg = std::hypot(x - px, y - py);
     if (prev_rising && now_rising && seg > 0.0) {
       if (acc + seg >= options.spacing) {
