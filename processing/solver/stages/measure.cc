@@ -728,11 +728,13 @@ RecordingMeasurement MeasureRecording(const dataset::Recording& rec, const Image
         for (const auto& m : measured)
           for (const auto& d : m.dots)
             (d.on_background ? on_background : d.fitted ? top_hat : centroid)++;
-        out.log.notes.push_back("dots: " + std::to_string(on_background) +
-                                " fitted over a background measured in other images, " +
-                                std::to_string(top_hat) +
-                                " over the top-hat (no dot-free view of their window), " +
-                                std::to_string(centroid) + " weighted centroids (fit failed)");
+        // Every candidate of every frame: texture blobs too, which the labelling and grouping
+        // later leave out (they are the usual weighted centroids), so the words say candidates.
+        out.log.notes.push_back(
+            "dot candidates (blobs kept before the labelling picks the dots): " +
+            std::to_string(on_background) + " fitted over a background measured in other images, " +
+            std::to_string(top_hat) + " over the top-hat (no dot-free view of their window), " +
+            std::to_string(centroid) + " weighted centroids (fit failed)");
       }
     } catch (const SolveError& e) {
       out.log.error = e.what();
