@@ -361,6 +361,20 @@ MirrorPosesSummary SummariseSolve(const solver::SolveOutput& out, double solve_t
   s.rms_sigma_alpha_deg = std::sqrt(sa / n);
   s.rms_sigma_beta_deg = std::sqrt(sb / n);
   s.rms_sigma_trans_mm = std::sqrt(st / n);
+  if (out.mle.usable) {
+    for (size_t b = 0; b < out.beams.size(); ++b) {
+      const int o = out.mle.OffsetBeam(static_cast<int>(b));
+      if (o + 2 > out.mle.other_cov.rows()) break;
+      s.beam_direction_sigma_deg.push_back(
+          std::sqrt(std::max(0.0, out.mle.other_cov.block<2, 2>(o, o).trace())) *
+          common::kDegPerRad);
+    }
+    double sn = 0;
+    for (const auto& c : out.mle.plane_cov) sn += std::max(0.0, c.topLeftCorner<2, 2>().trace());
+    if (!out.mle.plane_cov.empty())
+      s.rms_sigma_normal_world_deg =
+          std::sqrt(sn / static_cast<double>(out.mle.plane_cov.size())) * common::kDegPerRad;
+  }
   s.dropped_frames = out.dropped;
   s.notes = out.notes;
   s.world_from_mirror0_rotation = out.world_from_mirror0.RotationMatrix();
@@ -399,6 +413,8 @@ nlohmann::json SummaryJson(const MirrorPosesSummary& s) {
   j["rms_sigma_alpha_deg"] = s.rms_sigma_alpha_deg;
   j["rms_sigma_beta_deg"] = s.rms_sigma_beta_deg;
   j["rms_sigma_trans_mm"] = s.rms_sigma_trans_mm;
+  j["beam_direction_sigma_deg"] = s.beam_direction_sigma_deg;
+  j["rms_sigma_normal_world_deg"] = s.rms_sigma_normal_world_deg;
   nlohmann::json dropped = nlohmann::json::array();
   for (const auto& d : s.dropped_frames)
     dropped.push_back({{"file", d.file}, {"reason", d.reason}});
@@ -582,6 +598,14 @@ MirrorPosesSummary ReadMirrorPosesSummary(const fs::path& file) {
   s.rms_sigma_alpha_deg = f.Number(j, p, "rms_sigma_alpha_deg");
   s.rms_sigma_beta_deg = f.Number(j, p, "rms_sigma_beta_deg");
   s.rms_sigma_trans_mm = f.Number(j, p, "rms_sigma_trans_mm");
+  if (j.contains("beam_direction_sigma_deg")) {  // written since session 24
+    const nlohmann::json& bs = f.Array(j, p, "beam_direction_sigma_deg");
+    for (size_t i = 0; i < bs.size(); ++i)
+      s.beam_direction_sigma_deg.push_back(
+          f.AsNumber(bs[i], p + "beam_direction_sigma_deg[" + std::to_string(i) + "]"));
+  }
+  if (j.contains("rms_sigma_normal_world_deg"))
+    s.rms_sigma_normal_world_deg = f.Number(j, p, "rms_sigma_normal_world_deg");
   const nlohmann::json& dropped = f.Array(j, p, "dropped_frames");
   for (size_t i = 0; i < dropped.size(); ++i) {
     const std::string q = p + "dropped_frames[" + std::to_string(i) + "].";

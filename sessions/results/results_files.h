@@ -131,6 +131,13 @@ struct MirrorPosesSummary {
   Eigen::Vector3d mirror0_sigma_rotation_deg = Eigen::Vector3d::Zero();
   Eigen::Vector3d mirror0_sigma_origin_mm = Eigen::Vector3d::Zero();
   double rms_sigma_alpha_deg = 0, rms_sigma_beta_deg = 0, rms_sigma_trans_mm = 0;
+  // In {W}, from the MLE's covariance: each beam's direction (RMS angle, sqrt of the trace of its
+  // 2x2 tangent block; estimate and validate beams, beams.csv's order) and every mirror plane's
+  // normal (RMS over the planes). Step 1's sliding-plate depths set a common tilt of the beams
+  // that step 2 cannot see (docs/solver.md, "What limits the beams"); these carry it, where
+  // the {0}-frame sigmas above do not. Empty / < 0 in summaries written before session 24.
+  std::vector<double> beam_direction_sigma_deg;
+  double rms_sigma_normal_world_deg = -1;
   std::vector<solver::DroppedFrame> dropped_frames;
   std::vector<std::string> notes;
   Eigen::Matrix3d world_from_mirror0_rotation = Eigen::Matrix3d::Identity();

@@ -308,6 +308,8 @@ MirrorPosesSummary SampleSummary() {
   s.rms_sigma_alpha_deg = 0.004;
   s.rms_sigma_beta_deg = 0.005;
   s.rms_sigma_trans_mm = 0.006;
+  s.beam_direction_sigma_deg = {0.011, 0.012, 0.025};
+  s.rms_sigma_normal_world_deg = 0.007;
   s.dropped_frames = {{"step2/0003.png", "world board not found"}};
   s.notes = {"3 beams", "trigger assignment: 40 of 40"};
   s.world_from_mirror0_rotation << 0, -1, 0, 1, 0, 0, 0, 0, 1;
@@ -337,6 +339,8 @@ TEST(SummaryJson, MirrorPosesRoundTripAndOtherKeysAreKept) {
   EXPECT_EQ(b.variance_factors[1].name, "reflected_dots");
   EXPECT_EQ(b.variance_factors[1].redundancy, 75);
   EXPECT_EQ(b.mirror0_sigma_origin_mm, s.mirror0_sigma_origin_mm);
+  EXPECT_EQ(b.beam_direction_sigma_deg, s.beam_direction_sigma_deg);
+  EXPECT_EQ(b.rms_sigma_normal_world_deg, s.rms_sigma_normal_world_deg);
   ASSERT_EQ(b.dropped_frames.size(), 1u);
   EXPECT_EQ(b.dropped_frames[0].reason, "world board not found");
   EXPECT_EQ(b.notes, s.notes);
