@@ -3,6 +3,7 @@
 #include <yaml-cpp/yaml.h>
 
 #include <algorithm>
+#include <cstdio>
 #include <fstream>
 #include <set>
 #include <sstream>
@@ -309,6 +310,20 @@ SweepPlan ParseSweepPlan(const std::string& yaml_text, const std::string& source
   if (const YAML::Node n = root["note"]) {
     if (!n.IsScalar()) Fail(source_name, n, "note: expected text");
     plan.note = n.as<std::string>();
+    // A CR that YAML did not take as part of a line end (a CRLF file's last line without its
+    // LF) is the line end; any other control character would not survive the plan's copy
+    // (YAML writes it bare, and reading it back breaks the line there: fuzz/sweep_yaml).
+    while (!plan.note.empty() && plan.note.back() == '\r') plan.note.pop_back();
+    for (size_t i = 0; i < plan.note.size(); ++i) {
+      const unsigned char c = static_cast<unsigned char>(plan.note[i]);
+      if ((c < 0x20 && c != '\n' && c != '\t') || c == 0x7f) {
+        char code[8];
+        std::snprintf(code, sizeof code, "0x%02x", c);
+        Fail(source_name, n,
+             "note: control character " + std::string(code) + " at character " +
+                 std::to_string(i + 1) + " (a note is text: letters, tabs and line breaks)");
+      }
+    }
   }
   (void)ExpandPoints(plan);  // every point's options valid, or the error names the axis
   return plan;

@@ -234,6 +234,21 @@ TEST(SweepPlan, SelfContainedCopyRoundTripsAndChangesAreNamed) {
   EXPECT_NE(ComparePlans(copy, ParseSimPlan(more, "new.yaml", ".")).find("12"), std::string::npos);
 }
 
+// Found by fuzz/sweep_yaml: a note ending in a bare CR (a CRLF file without its last LF) was
+// written back bare and read back without it, so the plan's copy differed from the plan.
+TEST(SweepPlan, NoteLineEndsAreTrimmedAndControlCharactersRefused) {
+  const std::string text = "axes:\n  mirror.fast.frequency_hz: [205]\nrepeats: 2\nnote: x\r";
+  const SweepPlan plan = ParseSimPlan(text, "plan.yaml", ".");
+  EXPECT_EQ(plan.note, "x");
+  const std::string written = SweepPlanToYaml(plan);
+  EXPECT_EQ(SweepPlanToYaml(ParseSimPlan(written, "plan.yaml", ".")), written);
+  const SweepPlan crlf = ParseSimPlan("note: two lines\r\nrepeats: 2\r\n", "plan.yaml", ".");
+  EXPECT_EQ(crlf.note, "two lines");
+  ExpectPlanError("repeats: 2\nnote: \"a\\rb\"\n",
+                  {"plan.yaml:2", "note: control character 0x0d at character 2"});
+  ExpectPlanError("note: \"bell\\a\"\n", {"plan.yaml:1", "0x07"});
+}
+
 // Options with text fields (a rig file's host, camera kind): not varied by a sweep, but the
 // plan's self-contained copy carries them (a rig sweep's DIR/sweep.yaml must read back).
 class TextFieldParameters : public SweepParameters {
