@@ -703,6 +703,17 @@ SessionReport BuildSessionReport(const fs::path& dir, const ReportOptions& optio
     t1.caption = std::to_string(rep.planes) + " scan planes, " +
                  std::to_string(rep.validation_count) + " held-out dots, mean spanning angle " +
                  Fmt("%.2f", rep.mean_spanning_angle_deg) + " deg.";
+    if (s.rms_sigma_normal_world_deg >= 0) {  // summaries since session 24
+      // In {W}: step 1's common beam tilt, which step 2 cannot see and {0} cancels.
+      std::string beams;
+      for (double b : s.beam_direction_sigma_deg)
+        beams += (beams.empty() ? "" : " / ") + Fmt("%.4f", b);
+      t1.caption += " In the world frame the normals are uncertain by " +
+                    Fmt("%.4f", s.rms_sigma_normal_world_deg) +
+                    " deg (RMS sigma) and the beam directions by " + beams +
+                    " deg: step 1's tilt of the beams, shared by every plane, which the poses "
+                    "in {0} leave out.";
+    }
     if (have_truth) {
       t1.header.insert(t1.header.end(),
                        {"plane normal vs truth (deg RMS)", "alpha / beta vs truth (deg RMS)",

@@ -138,6 +138,8 @@ fs::path SolvedFolder(const fs::path& dir, double error_scale,
   s.dropped_frames = {{"step1/0003.png", "too few dots"},
                       {"step1/0004.png", "too few dots"},
                       {"step2/0001.png", "no board"}};
+  s.beam_direction_sigma_deg = {0.0175, 0.0182, 0.0172};
+  s.rms_sigma_normal_world_deg = 0.0309;
   results::WriteMirrorPosesSummary(dir / "results" / "summary.json", s);
   return dir;
 }
@@ -179,6 +181,10 @@ TEST(SessionReport, HonestSolveOpensOnAPassingVerdictWithTablesAndPlots) {
   EXPECT_LT(verdict, table1);
   EXPECT_LT(r.html.find("<h1>"), verdict);
   EXPECT_NE(r.html.find("<table id=\"table-dropped-frames\">"), std::string::npos);
+  // Table I says how uncertain the planes and beams are in {W} (summary.json), not only in {0}.
+  EXPECT_NE(r.html.find("normals are uncertain by 0.0309 deg (RMS sigma) and the beam "
+                        "directions by 0.0175 / 0.0182 / 0.0172 deg"),
+            std::string::npos);
   for (const char* id :
        {"plot-scan-pattern", "plot-pose-alpha", "plot-pose-beta", "plot-pose-trans",
         "plot-residual-families", "plot-whitened-histogram", "plot-normalised-errors",
