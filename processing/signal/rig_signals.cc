@@ -125,8 +125,15 @@ TriggerDesign DesignTriggers(const SineDrive& fast, const SineDrive& slow,
   design.arb = ChooseArbTiming(design.pattern_period_s, options);
   const int64_t n = design.arb.points;
   const double dt = design.arb.quantum_s;
-  design.pulse_samples =
-      std::max<int64_t>(1, static_cast<int64_t>(std::ceil(options.pulse_width_s / dt - 1e-9)));
+  // A pulse as long as the period is no pulse (and its sample count may not fit an integer:
+  // fuzz/rig_yaml, pulse_width_s 1e13 s).
+  const double pulse = std::ceil(options.pulse_width_s / dt - 1e-9);
+  if (!(pulse < static_cast<double>(n))) {
+    throw std::invalid_argument("trigger design: pulse_width_s = " + Fmt(options.pulse_width_s) +
+                                " s is not shorter than the pattern period (" +
+                                Fmt(design.pattern_period_s) + " s)");
+  }
+  design.pulse_samples = std::max<int64_t>(1, static_cast<int64_t>(pulse));
 
   // Walk the sample grid; accumulate signal-space arc length while both sines rise.
   auto rising = [&](double t) {

@@ -174,6 +174,23 @@ TEST(TriggerDesignTest, SkippingFallingStretchesPlacesTheSameTriggersAsTheFullWa
   EXPECT_GE(designs, 40);  // the comparison ran on most of the draws
 }
 
+// Found by fuzz/rig_yaml: a pulse width of 1e13 s made the pulse's sample count overflow.
+TEST(TriggerDesignTest, APulseAsLongAsThePeriodIsRefused) {
+  SineDrive fast{205, 2, 0, 0}, slow{5, 4, 0, 0};
+  TriggerDesignOptions o;
+  for (double width : {0.2, 1.0, 1e13}) {
+    o.pulse_width_s = width;
+    try {
+      (void)DesignTriggers(fast, slow, o);
+      ADD_FAILURE() << "no error for pulse_width_s = " << width;
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find("pulse_width_s"), std::string::npos) << e.what();
+      EXPECT_NE(std::string(e.what()).find("pattern period (0.2 s)"), std::string::npos)
+          << e.what();
+    }
+  }
+}
+
 TEST(TriggerDesignTest, ArbSamplesHaveOneRisingEdgePerTrigger) {
   TriggerDesignOptions o;
   o.pulse_width_s = 2e-6;
