@@ -314,6 +314,26 @@ SweepPlan ParseSweepPlan(const std::string& yaml_text, const std::string& source
     // LF) is the line end; any other control character would not survive the plan's copy
     // (YAML writes it bare, and reading it back breaks the line there: fuzz/sweep_yaml).
     while (!plan.note.empty() && plan.note.back() == '\r') plan.note.pop_back();
+    // And UTF-8: yaml-cpp writes other bytes back as something else.
+    for (size_t i = 0; i < plan.note.size();) {
+      const unsigned char c = static_cast<unsigned char>(plan.note[i]);
+      const size_t len = c < 0x80                 ? 1
+                         : c >= 0xC2 && c <= 0xDF ? 2
+                         : c >= 0xE0 && c <= 0xEF ? 3
+                         : c >= 0xF0 && c <= 0xF4 ? 4
+                                                  : 0;
+      bool ok = len > 0 && i + len <= plan.note.size();
+      for (size_t k = 1; ok && k < len; ++k)
+        ok = (static_cast<unsigned char>(plan.note[i + k]) & 0xC0) == 0x80;
+      // C1 controls (U+0080..U+009F) are control characters too.
+      if (ok && len == 2 && c == 0xC2 && static_cast<unsigned char>(plan.note[i + 1]) < 0xA0)
+        ok = false;
+      if (!ok)
+        Fail(source_name, n,
+             "note: not UTF-8 text at byte " + std::to_string(i + 1) +
+                 " (a note is text: letters, tabs and line breaks)");
+      i += len;
+    }
     for (size_t i = 0; i < plan.note.size(); ++i) {
       const unsigned char c = static_cast<unsigned char>(plan.note[i]);
       if ((c < 0x20 && c != '\n' && c != '\t') || c == 0x7f) {

@@ -247,6 +247,19 @@ TEST(SweepPlan, NoteLineEndsAreTrimmedAndControlCharactersRefused) {
   ExpectPlanError("repeats: 2\nnote: \"a\\rb\"\n",
                   {"plan.yaml:2", "note: control character 0x0d at character 2"});
   ExpectPlanError("note: \"bell\\a\"\n", {"plan.yaml:1", "0x07"});
+  // Not UTF-8 (found by fuzz/sweep_yaml: the copy wrote such bytes back as a control character).
+  ExpectPlanError(
+      "note: a\xC0\xC0"
+      "b\n",
+      {"plan.yaml:1", "not UTF-8 text at byte 2"});
+  EXPECT_EQ(ParseSimPlan("note: Gr\xC3\xB6\xC3\x9F"
+                         "e 5 \xC2\xB5"
+                         "m\n",
+                         "plan.yaml", ".")
+                .note,
+            "Gr\xC3\xB6\xC3\x9F"
+            "e 5 \xC2\xB5"
+            "m");
 }
 
 // Options with text fields (a rig file's host, camera kind): not varied by a sweep, but the
