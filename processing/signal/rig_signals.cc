@@ -135,21 +135,18 @@ TriggerDesign DesignTriggers(const SineDrive& fast, const SineDrive& slow,
   }
   design.pulse_samples = std::max<int64_t>(1, static_cast<int64_t>(pulse));
 
-  // Walk the sample grid; accumulate signal-space arc length while both sines rise.
-  auto rising = [&](double t) {
-    return std::cos(Phase(fast, t)) > 0.0 && std::cos(Phase(slow, t)) > 0.0;
-  };
-  std::vector<double> sx, sy;  // accepted dots in signal space
-  double acc = 0.0;
-  double px = SineUnit(fast, 0.0), py = SineUnit(slow, 0.0);
-  // Both sines and the rising test at one sample: one sincos per drive (the walk's hot spot).
+  // Walk the sample grid; accumulate signal-space arc length while both sines rise. Both sines
+  // and the rising test at one sample: one sincos per drive (the walk's hot spot).
   auto at = [&](double t, double* x, double* y) {
     double cx = 0.0, cy = 0.0;
     ::sincos(Phase(fast, t), x, &cx);
     ::sincos(Phase(slow, t), y, &cy);
     return cx > 0.0 && cy > 0.0;
   };
-  bool prev_rising = rising(0.0);
+  std::vector<double> sx, sy;  // accepted dots in signal space
+  double acc = 0.0;
+  double px = 0.0, py = 0.0;
+  bool prev_rising = at(0.0, &px, &py);
   int64_t last_index = -(1LL << 60);
   for (int64_t k = 1; k <= n; ++k) {
     if (!prev_rising) {
@@ -159,10 +156,7 @@ TriggerDesign DesignTriggers(const SineDrive& fast, const SineDrive& slow,
       if (next > n) break;
       if (next > k) {
         k = next;
-        const double t_prev = static_cast<double>(k - 1) * dt;
-        px = SineUnit(fast, t_prev);
-        py = SineUnit(slow, t_prev);
-        prev_rising = rising(t_prev);
+        prev_rising = at(static_cast<double>(k - 1) * dt, &px, &py);
       }
     }
     const double t = static_cast<double>(k) * dt;

@@ -314,7 +314,8 @@ SweepPlan ParseSweepPlan(const std::string& yaml_text, const std::string& source
     // LF) is the line end; any other control character would not survive the plan's copy
     // (YAML writes it bare, and reading it back breaks the line there: fuzz/sweep_yaml).
     while (!plan.note.empty() && plan.note.back() == '\r') plan.note.pop_back();
-    // And UTF-8: yaml-cpp writes other bytes back as something else.
+    // And UTF-8: yaml-cpp writes other bytes back as something else. One pass: each character's
+    // length from its lead byte, its continuation bytes, then control characters (C0, DEL, C1).
     for (size_t i = 0; i < plan.note.size();) {
       const unsigned char c = static_cast<unsigned char>(plan.note[i]);
       const size_t len = c < 0x80                 ? 1
@@ -322,27 +323,24 @@ SweepPlan ParseSweepPlan(const std::string& yaml_text, const std::string& source
                          : c >= 0xE0 && c <= 0xEF ? 3
                          : c >= 0xF0 && c <= 0xF4 ? 4
                                                   : 0;
-      bool ok = len > 0 && i + len <= plan.note.size();
-      for (size_t k = 1; ok && k < len; ++k)
-        ok = (static_cast<unsigned char>(plan.note[i + k]) & 0xC0) == 0x80;
-      // C1 controls (U+0080..U+009F) are control characters too.
-      if (ok && len == 2 && c == 0xC2 && static_cast<unsigned char>(plan.note[i + 1]) < 0xA0)
-        ok = false;
-      if (!ok)
+      bool utf8 = len > 0 && i + len <= plan.note.size();
+      for (size_t k = 1; utf8 && k < len; ++k)
+        utf8 = (static_cast<unsigned char>(plan.note[i + k]) & 0xC0) == 0x80;
+      if (!utf8)
         Fail(source_name, n,
              "note: not UTF-8 text at byte " + std::to_string(i + 1) +
                  " (a note is text: letters, tabs and line breaks)");
-      i += len;
-    }
-    for (size_t i = 0; i < plan.note.size(); ++i) {
-      const unsigned char c = static_cast<unsigned char>(plan.note[i]);
-      if ((c < 0x20 && c != '\n' && c != '\t') || c == 0x7f) {
-        char code[8];
-        std::snprintf(code, sizeof code, "0x%02x", c);
+      const unsigned code = len == 1   ? c
+                            : len == 2 ? (c & 0x1Fu) << 6 | (plan.note[i + 1] & 0x3F)
+                                       : 0;
+      if ((code < 0x20 && len == 1 && c != '\n' && c != '\t') || (code >= 0x7F && code < 0xA0)) {
+        char hex[8];
+        std::snprintf(hex, sizeof hex, "0x%02x", code);
         Fail(source_name, n,
-             "note: control character " + std::string(code) + " at character " +
-                 std::to_string(i + 1) + " (a note is text: letters, tabs and line breaks)");
+             "note: control character " + std::string(hex) + " at byte " + std::to_string(i + 1) +
+                 " (a note is text: letters, tabs and line breaks)");
       }
+      i += len;
     }
   }
   (void)ExpandPoints(plan);  // every point's options valid, or the error names the axis

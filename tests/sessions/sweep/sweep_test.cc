@@ -245,8 +245,12 @@ TEST(SweepPlan, NoteLineEndsAreTrimmedAndControlCharactersRefused) {
   const SweepPlan crlf = ParseSimPlan("note: two lines\r\nrepeats: 2\r\n", "plan.yaml", ".");
   EXPECT_EQ(crlf.note, "two lines");
   ExpectPlanError("repeats: 2\nnote: \"a\\rb\"\n",
-                  {"plan.yaml:2", "note: control character 0x0d at character 2"});
+                  {"plan.yaml:2", "note: control character 0x0d at byte 2"});
   ExpectPlanError("note: \"bell\\a\"\n", {"plan.yaml:1", "0x07"});
+  ExpectPlanError(
+      "note: a\xC2\x85"
+      "b\n",
+      {"plan.yaml:1", "control character 0x85 at byte 2"});
   // Not UTF-8 (found by fuzz/sweep_yaml: the copy wrote such bytes back as a control character).
   ExpectPlanError(
       "note: a\xC0\xC0"
