@@ -33,7 +33,7 @@ struct ReplayArgs {
   std::string out;
   bool compare = false;
   bool compare_only = false;
-  int threads = 2;  // as `msmcal demo` (FinishOptions): Ceres results depend on the thread count
+  int threads = 2;  // the solve's image threads, as `msmcal demo` (results do not depend on it)
   std::string camera_address = "127.0.0.1";
 };
 
@@ -135,7 +135,8 @@ void AddReplayCommands(CLI::App& app) {
   cmd->add_flag("--compare-only", args->compare_only,
                 "Do not replay: only compare the existing folder --out with SESSION");
   cmd->add_option("--threads", args->threads,
-                  "Solver threads (use the original's: `msmcal demo` solves with 2)");
+                  "The solve's image threads (the results do not depend on it; the MLE runs on "
+                  "one Ceres thread)");
   cmd->add_option("--camera-address", args->camera_address,
                   "Address the mock GigE Vision camera serves on (port 3956)");
   cmd->callback([args] {

@@ -11,10 +11,10 @@
 #include <string>
 
 #include "app/command_registry.h"
+#include "app/rig_sweep_parameters.h"
 #include "sessions/report/session_report.h"
 #include "sessions/report/sweep_report.h"
 #include "sessions/sweep/sweep_plan.h"
-#include "simulation/sweep_points/sim_sweep_parameters.h"
 #include "simulation/truth/truth_comparison.h"
 
 namespace msmcal::app {
@@ -32,8 +32,9 @@ void RunReport(const ReportArgs& args) {
   if (!fs::is_directory(dir)) throw std::runtime_error(dir.string() + ": not a folder");
   const report::ReportOptions options{/*session_process=*/false, {}};
   if (fs::exists(dir / "sweep.yaml")) {
+    // A simulated sweep's or a rig sweep's plan (its base: holds the rig file's fields).
     const sweep::SweepPlan plan =
-        sweep::LoadSweepPlan(dir / "sweep.yaml", simulation::SimSweepParameters());
+        sweep::LoadSweepPlan(dir / "sweep.yaml", StoredSweepParameters(dir / "sweep.yaml"));
     const report::SweepReport r =
         report::WriteSweepReport(dir, plan, sweep::ExpandPoints(plan), simulation::SimTruthSource(),
                                  /*write_point_reports=*/true, options);

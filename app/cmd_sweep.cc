@@ -15,10 +15,8 @@
 #include <sys/ioctl.h>
 #include <sys/wait.h>
 #include <unistd.h>
-#include <yaml-cpp/yaml.h>
 
 #include <CLI/CLI.hpp>
-#include <cctype>
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
@@ -30,6 +28,7 @@
 #include <vector>
 
 #include "app/command_registry.h"
+#include "app/rig_sweep_parameters.h"
 #include "app/session_flow.h"
 #include "drivers/generator/safe_state.h"
 #include "mocks/rig/rig_simulator.h"
@@ -128,59 +127,6 @@ class ProgressPrinter {
   std::mutex mu_;
   bool tty_;
   size_t width_ = 0;
-};
-
-// A rig sweep's options: the rig file's fields (docs/lab-path.md, "Rig sweeps"). The defaults
-// are the given rig file; an axis names a numeric field by its dotted path
-// (generators.signals.drive.fast.frequency_hz, generators.signals.trigger.spacing,
-// step2.scan_triggers_per_frame, ...). A point resolves only when its rig file passes every
-// check a session makes before touching the rig: the rig file's validation (channel limits:
-// frequency window, Vpp, offset), the plan's design (trigger design: duty, point count, sample
-// rate, at least 3 triggers) and the plan against the rig (CheckPlanAgainstRig).
-class RigSweepParameters : public sweep::SweepParameters {
- public:
-  explicit RigSweepParameters(const fs::path& rig_file)
-      : rig_file_(rig_file), defaults_(YAML::Dump(YAML::Load(rig::LoadRigFile(rig_file).text))) {}
-  std::string Noun() const override { return "rig file field"; }
-  std::string PathHint() const override {
-    return "(dotted rig file key, e.g. generators.signals.drive.fast.frequency_hz)";
-  }
-  std::string DefaultsYaml() const override { return defaults_; }
-  std::string LoadFile(const fs::path& file) const override {
-    return YAML::Dump(YAML::Load(rig::LoadRigFile(file).text));
-  }
-  std::string Resolve(const std::string& yaml, const std::string& where, int repeat,
-                      uint64_t* seed) const override {
-    // The rig file's own messages start "<origin>:<line>: "; the line would be the resolved
-    // document's, not the file's, so it is dropped: the origin names the point.
-    const std::string origin = where + " (" + rig_file_.string() + " with the point's values)";
-    rig::RigFile rig;
-    try {
-      rig = rig::ParseRigFile(yaml, origin);
-    } catch (const std::exception& e) {
-      std::string m = e.what();
-      if (m.rfind(origin + ":", 0) == 0) {
-        size_t k = origin.size() + 1;
-        while (k < m.size() && std::isdigit(static_cast<unsigned char>(m[k]))) ++k;
-        if (k < m.size() && m[k] == ':') m = origin + m.substr(k);
-      }
-      throw std::runtime_error(m);
-    }
-    dataset::Recording plan;
-    try {
-      plan = plan::DesignSessionPlan(rig);
-    } catch (const std::exception& e) {
-      throw std::runtime_error(where + ": plan design: " + e.what());
-    }
-    const std::string problem = plan::CheckPlanAgainstRig(plan, rig);
-    if (!problem.empty()) throw std::runtime_error(where + ": " + problem);
-    if (seed) *seed = static_cast<uint64_t>(repeat);
-    return yaml;
-  }
-
- private:
-  fs::path rig_file_;
-  std::string defaults_;
 };
 
 sweep::PointFolderState InspectPoint(const fs::path& folder) {
@@ -303,7 +249,7 @@ void RunRigSweep(const SweepArgs& args, const fs::path& plan_file, const fs::pat
     throw std::invalid_argument("--operator = '" + args.operator_spec +
                                 "': a rig sweep has nobody at the rig: hook:CMD (the set-up and "
                                 "truth requests) or no --operator");
-  const auto parameters = std::make_shared<const RigSweepParameters>(args.rig);
+  const auto parameters = RigSweepParameters::FromRigFile(args.rig);
   const sweep::SweepPlan plan = sweep::LoadSweepPlan(plan_file, parameters);
   const std::vector<sweep::SweepPoint> points = sweep::ExpandPoints(plan);  // every point checked
   // Each point's plan: the reference's step 1 with the point's step 2 (checked here too).
@@ -417,6 +363,11 @@ void RunSweepCommand(const SweepArgs& args) {
   if (!args.reference.empty() || !args.operator_spec.empty() || !args.mcu.empty())
     throw std::runtime_error(
         "sweep: --reference, --operator and --mcu are for a rig sweep (--rig RIG)");
+  if (fs::exists(dir / "sweep.yaml") && IsRigSweepPlan(dir / "sweep.yaml"))
+    throw std::runtime_error(dir.string() +
+                             " holds a rig sweep (its sweep.yaml's base: is a rig file): continue "
+                             "it with --rig RIG --reference SESSION_DIR (docs/lab-path.md, \"Rig "
+                             "sweeps\")");
   const sweep::SweepPlan plan = sweep::LoadSweepPlan(plan_file, simulation::SimSweepParameters());
   const std::vector<sweep::SweepPoint> points = sweep::ExpandPoints(plan);
   std::printf("msmcal sweep: %zu points (%zu axes x %d repeats) into %s\n", points.size(),

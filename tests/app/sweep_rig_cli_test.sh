@@ -7,7 +7,8 @@
 # created and nothing contacted (the test runs in a network namespace where nothing listens).
 # The simulated sweep's options are refused for a rig sweep (an unknown rig file field), and so is
 # a console operator (nobody is at the rig), and --mcu without --rig. Running the points (with
-# --mcu): cli.twin_rig_sweep.
+# --mcu): cli.twin_rig_sweep. A rig sweep folder is reported by `msmcal report` and not continued
+# without --rig.
 set -euo pipefail
 msmcal="$1"
 src="$2"
@@ -69,4 +70,23 @@ fi
 grep -q -F -- "--mcu are for a rig sweep (--rig RIG)" "$dir/simmcu.out" || {
   cat "$dir/simmcu.out"; exit 1; }
 test ! -e "$dir/simmcu"
+# A rig sweep's folder (sweep.yaml as the sweep stores it: base: holds every rig file field).
+# `msmcal report` reads it as a rig sweep (the simulator's options refuse base.generators), and
+# continuing it without --rig is refused with what it needs; nothing is run or written.
+mkdir -p "$dir/rs"
+{ echo 'axes: {generators.signals.drive.fast.amplitude_vpp: [2.0, 1.5]}'
+  echo 'base:'
+  sed 's/^/  /' "$rig"; } > "$dir/rs/sweep.yaml"
+"$msmcal" report "$dir/rs" --quiet > "$dir/rs.out" 2>&1 || {
+  cat "$dir/rs.out"; echo "FAIL: msmcal report on a rig sweep folder"; exit 1; }
+cat "$dir/rs.out"
+grep -q -F "sweep report: $dir/rs/report.html (0 of 2 point reports written)" "$dir/rs.out"
+grep -q -F "amplitude_vpp" "$dir/rs/report.html"
+if "$msmcal" sweep --resume "$dir/rs" > "$dir/rsr.out" 2>&1; then
+  echo "FAIL: a rig sweep continued without --rig"; cat "$dir/rsr.out"; exit 1
+fi
+cat "$dir/rsr.out"
+grep -q -F "holds a rig sweep" "$dir/rsr.out"
+grep -q -F -- "--rig RIG --reference SESSION_DIR" "$dir/rsr.out"
+test ! -e "$dir/rs/sweep_state.json"
 echo PASS

@@ -315,6 +315,18 @@ def main():
         print("%s: Hall vs truth alpha %s beta %s deg, trans %s mm, delta_t %s ms (not "
               "asserted)" % (r["point"], r["hall_vs_truth_alpha_deg"], r["hall_vs_truth_beta_deg"],
                              r["hall_vs_truth_trans_mm"], r["hall_delta_t_ms"]))
+    # `msmcal report DIR` rewrites the rig sweep's report and each point's from the folder alone
+    # (its sweep.yaml's base: is the rig file; the simulator's options would refuse it).
+    os.remove(os.path.join(out, "report.html"))
+    rep = subprocess.run([msmcal, "report", out, "--quiet"], stdout=subprocess.PIPE,
+                         stderr=subprocess.STDOUT, text=True, timeout=300)
+    if rep.returncode != 0 or "(2 of 2 point reports written)" not in rep.stdout:
+        fail("msmcal report on the rig sweep folder (exit %d):\n%s" % (rep.returncode, rep.stdout))
+    with open(os.path.join(out, "report.html")) as f:
+        html = f.read()
+    if not all(n in html for n in names):
+        fail("the rewritten sweep report does not link both points")
+    print("msmcal report %s: %s" % (out, rep.stdout.strip()))
     print("reference session %.0f s, whole test %.0f s" % (t_ref, time.monotonic() - t0))
     print("PASS")
 
