@@ -33,8 +33,7 @@ void RunReport(const ReportArgs& args) {
   const report::ReportOptions options{/*session_process=*/false, {}};
   if (fs::exists(dir / "sweep.yaml")) {
     // A simulated sweep's or a rig sweep's plan (its base: holds the rig file's fields).
-    const sweep::SweepPlan plan =
-        sweep::LoadSweepPlan(dir / "sweep.yaml", StoredSweepParameters(dir / "sweep.yaml"));
+    const sweep::SweepPlan plan = LoadStoredSweepPlan(dir / "sweep.yaml").plan;
     const report::SweepReport r =
         report::WriteSweepReport(dir, plan, sweep::ExpandPoints(plan), simulation::SimTruthSource(),
                                  /*write_point_reports=*/true, options);

@@ -229,6 +229,11 @@ rig::RigFile PointRig(const sweep::SweepPoint& point, const std::string& rig_fil
 // the reference's step 1 and background Hall recording, the point's rig check, actual Hall
 // recording and step 2 with nobody at the rig, solved and Hall-calibrated in this process.
 void RunRigSweep(const SweepArgs& args, const fs::path& plan_file, const fs::path& dir) {
+  if (fs::exists(dir / "sweep.yaml") && !IsRigSweepPlan(dir / "sweep.yaml"))
+    throw std::runtime_error(dir.string() +
+                             " holds a simulated sweep (its sweep.yaml's base: holds simulator "
+                             "options): continue it without --rig, --reference, --mcu and "
+                             "--operator");
   if (args.reference.empty() && !args.list)
     throw std::runtime_error(
         "sweep --rig: give --reference SESSION_DIR (the session whose step 1 "
@@ -366,8 +371,9 @@ void RunSweepCommand(const SweepArgs& args) {
   if (fs::exists(dir / "sweep.yaml") && IsRigSweepPlan(dir / "sweep.yaml"))
     throw std::runtime_error(dir.string() +
                              " holds a rig sweep (its sweep.yaml's base: is a rig file): continue "
-                             "it with --rig RIG --reference SESSION_DIR (docs/lab-path.md, \"Rig "
-                             "sweeps\")");
+                             "it with `msmcal sweep --resume DIR --rig RIG --reference "
+                             "SESSION_DIR` and the first run's --mcu and --operator "
+                             "(docs/lab-path.md, \"Rig sweeps\")");
   const sweep::SweepPlan plan = sweep::LoadSweepPlan(plan_file, simulation::SimSweepParameters());
   const std::vector<sweep::SweepPoint> points = sweep::ExpandPoints(plan);
   std::printf("msmcal sweep: %zu points (%zu axes x %d repeats) into %s\n", points.size(),

@@ -6,6 +6,8 @@
 #include <stdexcept>
 #include <utility>
 
+#include "common/file_text.h"
+#include "common/yaml_fields.h"
 #include "sessions/plan/session_plan.h"
 #include "sessions/rig/rig_file.h"
 #include "simulation/sweep_points/sim_sweep_parameters.h"
@@ -62,24 +64,40 @@ std::string RigSweepParameters::Resolve(const std::string& yaml, const std::stri
   return yaml;
 }
 
-bool IsRigSweepPlan(const fs::path& plan_file) {
-  YAML::Node root;
-  try {
-    root = YAML::LoadFile(plan_file.string());
-  } catch (const YAML::Exception& e) {
-    throw std::runtime_error(plan_file.string() + ":" + std::to_string(e.mark.line + 1) +
-                             ": not a YAML sweep plan (" + e.msg + ")");
-  }
+namespace {
+
+// The stored plan's document: "<file>: cannot open the sweep plan", or a YAML syntax error with
+// its line.
+YAML::Node LoadPlanDocument(const fs::path& plan_file, std::string* text) {
+  *text = common::ReadFileText(plan_file, "cannot open the sweep plan");
+  return common::YamlFields(plan_file.string()).Load(*text, "YAML syntax error: ");
+}
+
+bool BaseIsRigFile(const YAML::Node& root) {
   if (!root.IsMap()) return false;
   const YAML::Node base = root["base"];
   return base && base.IsMap() && base["generators"] && base["generators"].IsMap();
 }
 
-std::shared_ptr<const sweep::SweepParameters> StoredSweepParameters(const fs::path& plan_file) {
-  if (!IsRigSweepPlan(plan_file)) return simulation::SimSweepParameters();
-  const YAML::Node base = YAML::LoadFile(plan_file.string())["base"];
-  return std::make_shared<const RigSweepParameters>(YAML::Dump(base),
-                                                    plan_file.string() + " (its base:)");
+}  // namespace
+
+bool IsRigSweepPlan(const fs::path& plan_file) {
+  std::string text;
+  return BaseIsRigFile(LoadPlanDocument(plan_file, &text));
+}
+
+StoredSweepPlan LoadStoredSweepPlan(const fs::path& plan_file) {
+  std::string text;
+  const YAML::Node root = LoadPlanDocument(plan_file, &text);
+  StoredSweepPlan stored;
+  stored.rig = BaseIsRigFile(root);
+  std::shared_ptr<const sweep::SweepParameters> parameters =
+      stored.rig ? std::make_shared<const RigSweepParameters>(YAML::Dump(root["base"]),
+                                                              plan_file.string() + " (its base:)")
+                 : simulation::SimSweepParameters();
+  stored.plan = sweep::ParseSweepPlan(text, plan_file.string(), plan_file.parent_path(),
+                                      std::move(parameters));
+  return stored;
 }
 
 }  // namespace msmcal::app

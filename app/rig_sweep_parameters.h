@@ -1,6 +1,6 @@
-// The option set of a rig sweep (`msmcal sweep PLAN --rig RIG`): the rig file's fields. Used by
-// the sweep command (defaults: the --rig file) and by `msmcal report` / `sweep --resume` on a
-// sweep folder (defaults: the stored plan's base:, which holds every rig file field).
+// The option set of a rig sweep (`msmcal sweep PLAN --rig RIG`): the rig file's fields. The sweep
+// command's defaults are its --rig file; `msmcal report DIR` reads a rig sweep folder's stored
+// plan with that plan's base: (every rig file field) as the defaults.
 #pragma once
 
 #include <filesystem>
@@ -38,14 +38,20 @@ class RigSweepParameters : public sweep::SweepParameters {
   std::string defaults_;
 };
 
-// A sweep folder's stored plan (DIR/sweep.yaml, written by the sweep): true when it is a rig
-// sweep's, i.e. its base: holds a rig file's `generators:` (a simulated sweep's holds simulator
-// options, which have none). Throws std::runtime_error naming the file when it is not YAML.
+// True when a sweep folder's stored plan (DIR/sweep.yaml, as the sweep wrote it) is a rig
+// sweep's: its base: holds a rig file's `generators:` (a simulated sweep's holds simulator
+// options, which have none). Throws std::runtime_error naming the file when it cannot be read or
+// is not YAML (with the line).
 bool IsRigSweepPlan(const std::filesystem::path& plan_file);
 
-// The options of a sweep folder's stored plan: a rig sweep's (defaults: the plan's own base:) or
-// the simulator's.
-std::shared_ptr<const sweep::SweepParameters> StoredSweepParameters(
-    const std::filesystem::path& plan_file);
+// A sweep folder's stored plan, read once: a rig sweep's with its own base: as the rig file's
+// options (no --rig needed: `msmcal report DIR`), or a simulated sweep's.
+struct StoredSweepPlan {
+  bool rig = false;
+  sweep::SweepPlan plan;
+};
+// Throws std::runtime_error naming the file: cannot be read, YAML syntax (with the line), or
+// the plan's own errors (ParseSweepPlan).
+StoredSweepPlan LoadStoredSweepPlan(const std::filesystem::path& plan_file);
 
 }  // namespace msmcal::app

@@ -73,6 +73,9 @@ test ! -e "$dir/simmcu"
 # A rig sweep's folder (sweep.yaml as the sweep stores it: base: holds every rig file field).
 # `msmcal report` reads it as a rig sweep (the simulator's options refuse base.generators), and
 # continuing it without --rig is refused with what it needs; nothing is run or written.
+expect() {  # file, fixed string
+  grep -q -F -- "$2" "$1" || { cat "$1"; echo "FAIL: no '$2' in $1"; exit 1; }
+}
 mkdir -p "$dir/rs"
 { echo 'axes: {generators.signals.drive.fast.amplitude_vpp: [2.0, 1.5]}'
   echo 'base:'
@@ -80,13 +83,32 @@ mkdir -p "$dir/rs"
 "$msmcal" report "$dir/rs" --quiet > "$dir/rs.out" 2>&1 || {
   cat "$dir/rs.out"; echo "FAIL: msmcal report on a rig sweep folder"; exit 1; }
 cat "$dir/rs.out"
-grep -q -F "sweep report: $dir/rs/report.html (0 of 2 point reports written)" "$dir/rs.out"
-grep -q -F "amplitude_vpp" "$dir/rs/report.html"
+expect "$dir/rs.out" "sweep report: $dir/rs/report.html (0 of 2 point reports written)"
+expect "$dir/rs/report.html" "fast.amplitude_vpp=1.5"
 if "$msmcal" sweep --resume "$dir/rs" > "$dir/rsr.out" 2>&1; then
   echo "FAIL: a rig sweep continued without --rig"; cat "$dir/rsr.out"; exit 1
 fi
 cat "$dir/rsr.out"
-grep -q -F "holds a rig sweep" "$dir/rsr.out"
-grep -q -F -- "--rig RIG --reference SESSION_DIR" "$dir/rsr.out"
+expect "$dir/rsr.out" "holds a rig sweep"
+expect "$dir/rsr.out" "--rig RIG --reference SESSION_DIR"
 test ! -e "$dir/rs/sweep_state.json"
+# ... and a simulated sweep's folder is not continued as a rig sweep.
+mkdir -p "$dir/ss"
+printf '%s\n' 'axes: {mirror.fast.frequency_hz: [205]}' 'base: {seed: 1}' > "$dir/ss/sweep.yaml"
+if "$msmcal" sweep --resume "$dir/ss" --rig "$rig" --reference "$dir/ref" > "$dir/ssr.out" 2>&1; then
+  echo "FAIL: a simulated sweep continued with --rig"; cat "$dir/ssr.out"; exit 1
+fi
+cat "$dir/ssr.out"
+expect "$dir/ssr.out" "holds a simulated sweep"
+test ! -e "$dir/ss/sweep_state.json"
+# A stored plan that is not YAML: the report names the file and the line.
+mkdir -p "$dir/bad"
+printf '%s\n' 'axes: {a: [1, 2]' 'base: {' > "$dir/bad/sweep.yaml"
+if "$msmcal" report "$dir/bad" > "$dir/bad.out" 2>&1; then
+  echo "FAIL: a broken sweep.yaml reported"; cat "$dir/bad.out"; exit 1
+fi
+cat "$dir/bad.out"
+expect "$dir/bad.out" "$dir/bad/sweep.yaml:"
+expect "$dir/bad.out" "YAML syntax error"
+if grep -q -F "sweep.yaml:0:" "$dir/bad.out"; then echo "FAIL: line 0"; exit 1; fi
 echo PASS
