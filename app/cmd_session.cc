@@ -32,6 +32,7 @@
 #include "app/command_registry.h"
 #include "app/session_flow.h"
 #include "app/web_ui.h"
+#include "common/yaml_fields.h"
 #include "drivers/generator/rig_config.h"
 #include "drivers/generator/safe_state.h"
 #include "drivers/hall_mcu/hall_mcu_config.h"
@@ -81,7 +82,8 @@ struct SessionRunArgs {
   std::string plan;
   std::string out;
   std::string rig_id, mirror_id, note;
-  double frame_rate_hz = 0;  // 0: the rig file's camera.frame_rate_hz
+  double frame_rate_hz = 0;  // with frame_rate_given: instead of the rig file's
+  bool frame_rate_given = false;
   std::string operator_spec = "console";
   int hook_timeout_s = 600;
   bool dry_run = false;
@@ -119,13 +121,19 @@ void RunSessionRun(const SessionRunArgs& args) {
   if (args.web.enabled()) web = std::make_unique<WebUi>(args.web);
   const fs::path out = fs::absolute(args.out);
   // Everything is checked before anything is created or contacted.
-  const rig::RigFile rig = rig::LoadRigFile(args.rig);
+  rig::RigFile rig = rig::LoadRigFile(args.rig);
+  if (args.frame_rate_given) {  // the rig file's rule, so that --dry-run and the plan see it too
+    if (const std::string e = rig.camera.CheckFrameRate(args.frame_rate_hz); !e.empty())
+      throw std::invalid_argument("--frame-rate = " + common::FieldNumber(args.frame_rate_hz) +
+                                  ": " + e + " (" + args.rig + ")");
+    rig.camera.frame_rate_hz = args.frame_rate_hz;
+  }
   if (!ParseOperatorSpec(args.operator_spec).empty() && web)
     throw std::invalid_argument("--ui web and --operator " + args.operator_spec +
                                 ": the web page is an operator; use one of them");
-  if (args.hook_timeout_s <= 0)
+  if (args.hook_timeout_s <= 0 || args.hook_timeout_s > 86400)  // as `msmcal sweep`'s
     throw std::invalid_argument("--hook-timeout = " + std::to_string(args.hook_timeout_s) +
-                                ": must be > 0 s");
+                                ": must be in (0, 86400] s");
   const dataset::Recording plan = ReadPlanFolder(args.plan);
   if (std::string e = plan::CheckPlanAgainstRig(plan, rig); !e.empty())
     throw std::runtime_error(args.plan + " against " + args.rig + ": " + e);
@@ -143,7 +151,7 @@ void RunSessionRun(const SessionRunArgs& args) {
   lab.rig_origin = args.rig;
   lab.camera_address = args.camera.empty() ? rig.camera.OpenString() : args.camera;
   lab.mcu_device = args.mcu;
-  lab.camera_frame_rate_hz = args.frame_rate_hz > 0 ? args.frame_rate_hz : rig.camera.frame_rate_hz;
+  lab.camera_frame_rate_hz = rig.camera.frame_rate_hz;  // --frame-rate applied above
   lab.camera_exposure_us = rig.camera.exposure_us;
   lab.background_seconds = rig.step2.hall_background_s;
   lab.actual_min_seconds = rig.step2.hall_actual_min_s;
@@ -208,7 +216,9 @@ void AddSessionCommands(CLI::App& app) {
   run->add_option("--mirror-id", run_args->mirror_id, "Mirror identifier (catalogue)");
   run->add_option("--note", run_args->note, "Free text (catalogue)");
   run->add_option("--frame-rate", run_args->frame_rate_hz,
-                  "Camera frame rate, Hz (default: the rig file's)");
+                  "Camera frame rate, Hz (default: the rig file's camera.frame_rate_hz; the rig "
+                  "file's rule: (0, 1000], a period not shorter than camera.exposure_us)")
+      ->each([run_args](const std::string&) { run_args->frame_rate_given = true; });
   run->add_option("--operator", run_args->operator_spec,
                   "Who changes the rig: console (guided terminal) or hook:CMD (CMD gets each "
                   "set-up's JSON on stdin, docs/lab-path.md)");

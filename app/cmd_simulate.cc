@@ -53,7 +53,16 @@ void PrepareOutDir(const SimulateArgs& args) {
                                  ": folder is not empty (use --overwrite to replace "
                                  "a simulated folder)");
       }
+      // Only a simulated folder: it has the simulator's truth/ and no journal (a recorded
+      // session has session.db; its images and Hall recordings are never removed here).
+      if (!fs::is_directory(out / "truth") || fs::exists(out / "session.db"))
+        throw std::runtime_error(args.out_dir +
+                                 ": --overwrite replaces only a folder `msmcal simulate` wrote "
+                                 "(it has truth/ and no session.db journal); this one is not: "
+                                 "choose another OUT_DIR");
       for (const char* e : kOwnedEntries) fs::remove_all(out / e);
+      // What was computed from the old data would describe the new one wrongly.
+      for (const char* e : {"results", "report.html"}) fs::remove_all(out / e);
     }
   }
   fs::create_directories(out);

@@ -119,7 +119,8 @@ void ReadCamera(const Reader& r, const YAML::Node& root, double pattern_period_s
   } else {
     r.Fail(n["kind"], f + ".kind", " = '" + kind + "': must be gige or v4l2");
   }
-  c->frame_rate_hz = r.Number(n, "frame_rate_hz", f + ".frame_rate_hz", 10.0, 0, 1000, true);
+  c->frame_rate_hz =
+      r.Number(n, "frame_rate_hz", f + ".frame_rate_hz", 10.0, 0, kMaxFrameRateHz, true);
   c->exposure_us = r.Number(n, "exposure_us", f + ".exposure_us", 20000.0, 0, 1e7, true);
   const double period_us = 1e6 / c->frame_rate_hz;
   if (c->exposure_us > period_us) {
@@ -186,6 +187,15 @@ double SlidingPlate::DistanceMm(int pose) const {
 }
 
 double SlidingPlate::TiltDeg(int pose) const { return (pose % 2 == 0 ? 1 : -1) * tilt_deg; }
+
+std::string RigCamera::CheckFrameRate(double hz) const {
+  if (!std::isfinite(hz) || !(hz > 0) || hz > kMaxFrameRateHz)
+    return "must be in (0, " + FieldNumber(kMaxFrameRateHz) + "] Hz";
+  if (exposure_us > 1e6 / hz)
+    return "its frame period 1e6 / " + FieldNumber(hz) + " = " + FieldNumber(1e6 / hz) +
+           " us is shorter than camera.exposure_us = " + FieldNumber(exposure_us) + " us";
+  return "";
+}
 
 RigFile ParseRigFile(const std::string& yaml_text, const std::string& origin) {
   RigFile rf;

@@ -36,7 +36,12 @@ struct RigCamera {
   geometry::CameraModel model;
   // What InstrumentFactory::OpenCamera / camera::OpenCamera read: the address, or "v4l2:DEVICE".
   std::string OpenString() const;
+  // The rig file's rule for another frame rate (a command line's --frame-rate): finite, in
+  // (0, kMaxFrameRateHz] and its period at least exposure_us. "" or the violated constraint
+  // ("must be in (0, 1000] Hz").
+  std::string CheckFrameRate(double hz) const;
 };
+inline constexpr double kMaxFrameRateHz = 1000;
 
 struct RigBeams {
   int count = 3;                  // 2 .. 16 beams from the splitter, ids 1..count

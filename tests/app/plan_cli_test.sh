@@ -95,4 +95,31 @@ if "$msmcal" session run --rig "$src/config/rig.yaml" --plan "$dir/plan" --out "
   echo "expected a refusal of --operator robot"; exit 1
 fi
 grep -q "\-\-operator = 'robot': must be console or hook:CMD" "$dir/err"
+
+# --frame-rate follows the rig file's camera rule before anything (the dry run included): in
+# (0, 1000] Hz, not NaN, and a period not shorter than camera.exposure_us (220 000 us here);
+# a valid one is what the rehearsal's duration uses. --hook-timeout is bounded as the sweep's.
+refuse_run() {  # expected message, options...
+  local expected="$1"
+  shift
+  if "$msmcal" session run --rig "$src/config/rig.yaml" --plan "$dir/plan" --out "$dir/new/s4" \
+      --dry-run "$@" > "$dir/err" 2>&1; then
+    echo "expected a refusal of $*"; cat "$dir/err"; exit 1
+  fi
+  cat "$dir/err"
+  grep -q -F -- "$expected" "$dir/err" || { echo "no '$expected' for $*"; exit 1; }
+  test ! -e "$dir/new"
+}
+refuse_run "--frame-rate = 5000: must be in (0, 1000] Hz" --frame-rate 5000
+refuse_run "--frame-rate = nan: must be in (0, 1000] Hz" --frame-rate nan
+refuse_run "--frame-rate = 0: must be in (0, 1000] Hz" --frame-rate 0
+refuse_run "--frame-rate = 10: its frame period 1e6 / 10 = 100000 us is shorter than camera.exposure_us = 220000 us" --frame-rate 10
+refuse_run "--hook-timeout = 100000: must be in (0, 86400] s" --hook-timeout 100000
+"$msmcal" session run --rig "$src/config/rig.yaml" --plan "$dir/plan" --out "$dir/new/s5" \
+    --dry-run --frame-rate 2 > "$dir/dry2.out"
+grep -q "^dry run: the plan fits the rig's limits$" "$dir/dry2.out"
+if cmp -s "$dir/dry.out" "$dir/dry2.out"; then
+  echo "--frame-rate 2 did not reach the rehearsal's summary"; exit 1
+fi
+test ! -e "$dir/new"
 echo "plan / dry run: ok"

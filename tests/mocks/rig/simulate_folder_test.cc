@@ -135,5 +135,51 @@ TEST(SimulateFolderTest, CliIsDeterministicPerSeed) {
   EXPECT_NE(run(a, 3), 0);
 }
 
+// --overwrite replaces a folder `msmcal simulate` wrote (truth/, no journal) and drops what was
+// computed from the old data; a recorded session's folder (session.db) or any folder without
+// truth/ is refused and left as it was.
+TEST(SimulateFolderTest, OverwriteReplacesOnlyASimulatedFolder) {
+  const fs::path msmcal =
+      fs::path(EnvOr("MSMCAL_BINARY_DIR", MSMCAL_TEST_BINARY_DIR)) / "app" / "msmcal";
+  if (!fs::exists(msmcal)) GTEST_SKIP() << "msmcal binary not built";
+  const fs::path cfg = TempDir("small_ow.yaml");
+  std::ofstream(cfg) << kSmallConfig;
+  auto run = [&](const fs::path& out, bool overwrite) {
+    const std::string cmd = msmcal.string() + " simulate " + out.string() + " --config " +
+                            cfg.string() + " --no-images" + (overwrite ? " --overwrite" : "") +
+                            " >/dev/null 2>&1";
+    return std::system(cmd.c_str());
+  };
+  const fs::path sim = TempDir("ow_sim");
+  ASSERT_EQ(run(sim, false), 0);
+  fs::create_directories(sim / "results");
+  std::ofstream(sim / "results" / "summary.json") << "{}";
+  std::ofstream(sim / "report.html") << "old";
+  std::ofstream(sim / "notes.txt") << "mine";
+  ASSERT_EQ(run(sim, true), 0);
+  EXPECT_TRUE(fs::exists(sim / "truth" / "mirror_planes.csv"));
+  EXPECT_TRUE(fs::exists(sim / "session.yaml"));
+  EXPECT_FALSE(fs::exists(sim / "results"));
+  EXPECT_FALSE(fs::exists(sim / "report.html"));
+  EXPECT_EQ(Slurp(sim / "notes.txt"), "mine");  // not one of its entries: kept
+
+  const fs::path recorded = TempDir("ow_recorded");  // a session's folder: journal, images
+  fs::create_directories(recorded / "step1");
+  fs::create_directories(recorded / "truth");
+  std::ofstream(recorded / "session.db") << "journal";
+  std::ofstream(recorded / "session.yaml") << "recorded";
+  std::ofstream(recorded / "step1" / "0000.png") << "frame";
+  EXPECT_NE(run(recorded, true), 0);
+  EXPECT_EQ(Slurp(recorded / "session.yaml"), "recorded");
+  EXPECT_EQ(Slurp(recorded / "step1" / "0000.png"), "frame");
+  EXPECT_EQ(Slurp(recorded / "session.db"), "journal");
+
+  const fs::path other = TempDir("ow_other");  // no truth/: not the simulator's
+  fs::create_directories(other / "hall");
+  std::ofstream(other / "hall" / "actual.csv") << "readings";
+  EXPECT_NE(run(other, true), 0);
+  EXPECT_EQ(Slurp(other / "hall" / "actual.csv"), "readings");
+}
+
 }  // namespace
 }  // namespace msmcal::sim
