@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <charconv>
 #include <chrono>
+#include <cmath>
 #include <condition_variable>
 #include <cstdio>
 #include <filesystem>
@@ -23,6 +24,7 @@
 #include "acquisition/frames/frame_grabber.h"
 #include "acquisition/frames/frame_writer.h"
 #include "app/command_registry.h"
+#include "common/yaml_fields.h"
 #include "drivers/camera/open_camera.h"
 #include "mocks/camera/mock_gv_camera.h"
 #include "mocks/camera/rig_scene_source.h"
@@ -48,6 +50,19 @@ struct GrabArgs {
 };
 
 void RunGrab(const GrabArgs& args) {
+  // Checked before the camera is opened: values, and no earlier frames in --out.
+  if (!std::isfinite(args.frame_rate_hz) || args.frame_rate_hz < 0)
+    throw std::invalid_argument(
+        "--frame-rate = " + msmcal::common::FieldNumber(args.frame_rate_hz) +
+        ": must be >= 0 Hz (0 keeps the camera's)");
+  if (!std::isfinite(args.exposure_us) || args.exposure_us < 0)
+    throw std::invalid_argument("--exposure-us = " + msmcal::common::FieldNumber(args.exposure_us) +
+                                ": must be >= 0 us (0 keeps the camera's)");
+  if (std::filesystem::exists(args.out) &&
+      !(std::filesystem::is_directory(args.out) && std::filesystem::is_empty(args.out)))
+    throw std::runtime_error("--out " + args.out +
+                             ": exists and is not an empty folder (camera grab does not "
+                             "overwrite or mix with earlier frames)");
   auto opened = msmcal::camera::OpenCamera(args.device);
   if (!opened.camera) throw std::runtime_error(opened.error);
   msmcal::camera::Camera& camera = *opened.camera;
@@ -247,13 +262,16 @@ void AddCameraCommands(CLI::App& app) {
                    "GigE address (127.0.0.1), aravis:ID, or v4l2:/dev/videoN")
       ->required();
   grab->add_option("--count", grab_args->count, "Frames to save")->check(CLI::PositiveNumber);
-  grab->add_option("--out", grab_args->out, "Output folder")->required();
+  grab->add_option("--out", grab_args->out, "Output folder (created; or an empty one)")->required();
   grab->add_option("--pixel-format", grab_args->pixel_format, "Mono8|Mono16|BayerRG8|RGB8");
   grab->add_option("--width", grab_args->width, "ROI width (0 = sensor)");
   grab->add_option("--height", grab_args->height, "ROI height (0 = sensor)");
   grab->add_option("--frame-rate", grab_args->frame_rate_hz, "Frame rate, Hz (0 = keep)");
   grab->add_option("--exposure-us", grab_args->exposure_us, "Exposure, us (0 = keep)");
-  grab->add_option("--timeout-ms", grab_args->timeout_ms, "Per-frame deadline, ms");
+  grab->add_option("--timeout-ms", grab_args->timeout_ms,
+                   "How long one wait for a frame lasts, ms (a timed-out wait is counted and "
+                   "retried)")
+      ->check(CLI::Range(1, 3600000));
   grab->add_option("--png-compression", grab_args->compression, "0..9")->check(CLI::Range(0, 9));
   grab->callback([grab_args] { RunGrab(*grab_args); });
 

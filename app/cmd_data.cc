@@ -97,7 +97,7 @@ void AddImport(CLI::App& app) {
   };
   auto a = std::make_shared<Args>();
   auto* cmd = app.add_subcommand("import", "Import an interchange folder as a new session");
-  cmd->add_option("FOLDER", a->folder, "interchange folder (docs: interchange-format.md)")
+  cmd->add_option("FOLDER", a->folder, "interchange folder (../shared/docs/interchange-format.md)")
       ->required();
   cmd->add_option("--root", a->root, "sessions root folder")->capture_default_str();
   cmd->add_option("--name", a->name, "session folder name (default: <UTC time>-<folder name>)");
@@ -206,7 +206,8 @@ void AddSessions(CLI::App& app) {
   show->add_option("SESSION", s->session, "session folder, or its name under --root")->required();
   show->add_option("--root", s->root, "sessions root folder")->capture_default_str();
   show->add_option("--events", s->events, "how many of the last events to print")
-      ->capture_default_str();
+      ->capture_default_str()
+      ->check(CLI::Range(1, 1000000));
   show->callback([s] {
     const store::SystemClock clock;
     const auto session = store::SessionStore::Open(store::ResolveSession(s->session, s->root),

@@ -127,6 +127,13 @@ std::string FormatCounts(const acquisition::HallRecorderCounts& c) {
 }
 
 void RunHallRecord(const RecordArgs& args) {
+  // A recording is never overwritten (the writer truncates): checked before the MCU is opened.
+  for (const std::filesystem::path& f :
+       {std::filesystem::path(args.out), acquisition::ClockCsvPathFor(args.out)})
+    if (std::filesystem::exists(f))
+      throw std::runtime_error("--out " + args.out + ": " + f.string() +
+                               " exists (hall record does not overwrite a recording: choose "
+                               "another name or move it away)");
   // The rig configuration's hall_mcu section first, then the flags given on the command line.
   hall_mcu::HallMcuOptions driver_options;
   acquisition::HallRecorderOptions options;
@@ -246,17 +253,27 @@ void AddHallIoCommands(CLI::App& app) {
     cmd->add_option("--seconds", args->seconds, "MCU time to record; 0 = until end of data/^C")
         ->required()
         ->check(CLI::NonNegativeNumber);
-    cmd->add_option("--out", args->out, "readings CSV; clock edges go to <stem>_clock.csv")
+    cmd->add_option("--out", args->out,
+                    "readings CSV; clock edges go to <stem>_clock.csv (neither may exist)")
         ->required();
-    cmd->add_option("--baud", args->baud, "baud rate (ignored by USB CDC; default 921600)");
+    cmd->add_option("--baud", args->baud,
+                    "baud rate (ignored by USB CDC; default: the rig file's, else 921600)");
     cmd->add_option("--rate", args->rate_hz, "sample rate to set, Hz")->check(CLI::Range(1, 5000));
     cmd->add_option("--gain", args->gain_sel, "MLX90393 GAIN_SEL to set (0..7)")
         ->check(CLI::Range(0, 7));
+    auto* gain = cmd->get_option("--gain");
+    gain->description(
+        "MLX90393 GAIN_SEL to set (0..7); replaces the rig file's whole sensor section, with "
+        "--res-xy / --res-z (default 0) and the default OSR and digital filter");
     cmd->add_option("--res-xy", args->res_xy, "RES_X = RES_Y with --gain (0..3)")
-        ->check(CLI::Range(0, 3));
-    cmd->add_option("--res-z", args->res_z, "RES_Z with --gain (0..3)")->check(CLI::Range(0, 3));
+        ->check(CLI::Range(0, 3))
+        ->needs(gain);
+    cmd->add_option("--res-z", args->res_z, "RES_Z with --gain (0..3)")
+        ->check(CLI::Range(0, 3))
+        ->needs(gain);
     cmd->add_option("--stall-timeout-ms", args->stall_timeout_ms,
-                    "silence after which the recording fails (default 500)")
+                    "silence after which the recording fails (default: the rig file's, else "
+                    "500)")
         ->check(CLI::Range(1, 600000));
     cmd->callback([args] { RunHallRecord(*args); });
   }

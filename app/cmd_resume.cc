@@ -96,8 +96,8 @@ void AddResumeCommands(CLI::App& app) {
   resume->add_option("--camera-address", args->camera_address,
                      "Address the mock GigE Vision camera serves on (demo sessions)");
   resume->add_flag("--guided", args->guided,
-                   "Demo sessions: prompt on this terminal for every set-up (lab sessions always "
-                   "do)");
+                   "Demo sessions: prompt on this terminal for every set-up (a lab session "
+                   "resumes with the operator its journal holds: the console or its hook)");
   resume->callback([args] {
     const gen::OpenGeneratorsGuard signals;  // from the start: docs/watchdog.md
     RunResume(*args);

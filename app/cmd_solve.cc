@@ -493,7 +493,7 @@ void AddSolveCommands(CLI::App& app) {
       "table1", "MSM paper Table I: baseline vs proposed on 3 spanning angles x 2 patterns");
   table1->add_option("--seed", t1->seed, "Base seed of the simulated sessions");
   table1->add_option("--out", t1->out, "Also write the Markdown table to this file");
-  table1->add_option("--rows", t1->rows, "Only these rows (1..6)");
+  table1->add_option("--rows", t1->rows, "Only these rows (1..6)")->check(CLI::Range(1, 6));
   table1
       ->add_option("--config", t1->config,
                    "Solver settings for every row (solve.yaml, as msmcal solve --config)")
