@@ -46,6 +46,7 @@ struct GrabArgs {
   double frame_rate_hz = 0;
   double exposure_us = 0;
   int64_t timeout_ms = 5000;
+  uint64_t max_timeouts = 3;  // timed-out waits in a row before grab fails (0: never)
   int compression = 1;
 };
 
@@ -92,6 +93,7 @@ void RunGrab(const GrabArgs& args) {
   msmcal::frames::GrabberOptions options;
   options.max_frames = args.count;
   options.frame_timeout_us = args.timeout_ms * 1000;
+  options.max_consecutive_timeouts = args.max_timeouts;
   options.writer_threads = 2;
   options.queue_capacity = queue;
   msmcal::frames::FrameGrabber grabber(camera, writer, options);
@@ -270,8 +272,11 @@ void AddCameraCommands(CLI::App& app) {
   grab->add_option("--exposure-us", grab_args->exposure_us, "Exposure, us (0 = keep)");
   grab->add_option("--timeout-ms", grab_args->timeout_ms,
                    "How long one wait for a frame lasts, ms (a timed-out wait is counted and "
-                   "retried)")
+                   "retried up to --max-timeouts times in a row)")
       ->check(CLI::Range(1, 3600000));
+  grab->add_option("--max-timeouts", grab_args->max_timeouts,
+                   "Timed-out waits in a row after which grab fails saying so (0 = wait for ever)")
+      ->capture_default_str();
   grab->add_option("--png-compression", grab_args->compression, "0..9")->check(CLI::Range(0, 9));
   grab->callback([grab_args] { RunGrab(*grab_args); });
 

@@ -47,14 +47,23 @@ camera::Status FrameGrabber::Start() {
 
 void FrameGrabber::CaptureLoop() {
   uint64_t index = 0;
+  uint64_t timeouts_in_a_row = 0;
   while (!stop_.load()) {
     if (options_.max_frames > 0 && index >= options_.max_frames) break;
     camera::FrameResult r = camera_.NextFrame(options_.frame_timeout_us);
     if (r.status == camera::FrameStatus::kTimeout) {
       std::lock_guard<std::mutex> lock(mutex_);
       ++stats_.timeouts;
+      if (options_.max_consecutive_timeouts > 0 &&
+          ++timeouts_in_a_row >= options_.max_consecutive_timeouts) {
+        stats_.last_error = "no frame in " + std::to_string(timeouts_in_a_row) + " waits of " +
+                            std::to_string(options_.frame_timeout_us / 1000) +
+                            " ms in a row (is the camera streaming and triggered?)";
+        break;
+      }
       continue;
     }
+    timeouts_in_a_row = 0;
     if (r.status != camera::FrameStatus::kOk) {
       std::lock_guard<std::mutex> lock(mutex_);
       stats_.last_error = r.message;

@@ -24,7 +24,10 @@ struct GrabberOptions {
   int writer_threads = 1;
   int64_t frame_timeout_us = 2'000'000;  // NextFrame deadline
   uint64_t max_frames = 0;               // stop after this many grabbed frames; 0 = until Stop()
-  std::function<int64_t()> now_ns;       // clock for the rates; null = steady_clock
+  // End the capture after this many NextFrame timeouts in a row, with last_error saying so (a
+  // camera that opened but streams nothing); 0 = wait for ever (each timeout counted).
+  uint64_t max_consecutive_timeouts = 0;
+  std::function<int64_t()> now_ns;  // clock for the rates; null = steady_clock
   std::string Validate() const;
 };
 

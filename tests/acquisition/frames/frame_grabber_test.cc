@@ -138,6 +138,27 @@ TEST_F(GrabberTest, CountsFramesDroppedWhenStorageFallsBehind) {
   EXPECT_EQ(stats.frames_written + stats.frames_dropped, 8u);
 }
 
+// A camera that opened but streams nothing: with max_consecutive_timeouts the capture ends and
+// says why instead of waiting for ever; frames that do come reset the count.
+TEST_F(GrabberTest, EndsAfterConsecutiveTimeoutsAndSaysWhy) {
+  fake_->SetAutoProduce(false);
+  GatedSink sink;
+  sink.Open();
+  GrabberOptions options;
+  options.max_frames = 5;
+  options.frame_timeout_us = 1000;
+  options.max_consecutive_timeouts = 3;
+  FrameGrabber grabber(*camera_, sink, options);
+  ASSERT_TRUE(grabber.Start());
+  grabber.Wait();
+  grabber.Stop();
+  const GrabberStats stats = grabber.Stats();
+  EXPECT_EQ(stats.frames_grabbed, 0u);
+  EXPECT_EQ(stats.timeouts, 3u);
+  EXPECT_NE(stats.last_error.find("no frame in 3 waits of 1 ms in a row"), std::string::npos)
+      << stats.last_error;
+}
+
 TEST_F(GrabberTest, RatesFromInjectedClock) {
   GatedSink sink;
   sink.Open();
@@ -145,7 +166,7 @@ TEST_F(GrabberTest, RatesFromInjectedClock) {
   GrabberOptions options;
   options.max_frames = 5;
   options.writer_threads = 1;
-  options.queue_capacity = 16;  // no drops (see above)
+  options.queue_capacity = 16;                                      // no drops (see above)
   options.now_ns = [&] { return fake_now.fetch_add(50'000'000); };  // +50 ms per reading
   FrameGrabber grabber(*camera_, sink, options);
   ASSERT_TRUE(grabber.Start());
