@@ -10,6 +10,9 @@
 #include <cstdio>
 #include <filesystem>
 #include <random>
+#include <stdexcept>
+#include <string>
+#include <vector>
 
 #include "app/command_registry.h"
 #include "common/progress_line.h"
@@ -37,6 +40,8 @@ struct Table2Args {
   double actual_s = 130;
   double background_s = 65;
   int triggers = 195;
+  // Given on the command line: with --config, only these replace the file's values.
+  bool seed_given = false, actual_given = false, background_given = false, triggers_given = false;
 };
 
 // Model error alone: every model fitted to noise-free poses with the simulator's exact
@@ -71,6 +76,7 @@ void RunTable2(const Table2Args& args) {
   const auto t0 = std::chrono::steady_clock::now();
   results::HallCalibrationSetup setup;
   double true_delta_t = std::nan("");
+  uint64_t seed = args.seed;  // the simulation's (the config file's without --seed) and the splits'
   if (!args.from.empty()) {
     const dataset::Recording rec = interchange::ReadRecording(args.from);
     const auto planes =
@@ -80,16 +86,21 @@ void RunTable2(const Table2Args& args) {
       true_delta_t = sim::ReadTruth(args.from).hall.delta_t_s;
     std::printf("poses: %zu estimated planes from %s\n", planes.size(), args.from.c_str());
   } else {
-    sim::SimOptions options =
-        args.config.empty() ? sim::SimOptions{} : sim::LoadSimOptions(args.config);
-    options.seed = args.seed;
-    options.hall.actual_duration_s = args.actual_s;
-    options.hall.background_duration_s = args.background_s;
-    options.triggers.max_triggers = args.triggers;
+    // Without --config: the built-in options with the paper's dataset sizes (the options'
+    // defaults); with it: the file's values, replaced only by the options given.
+    const bool file = !args.config.empty();
+    sim::SimOptions options = file ? sim::LoadSimOptions(args.config) : sim::SimOptions{};
+    if (!file || args.seed_given) options.seed = args.seed;
+    if (!file || args.actual_given) options.hall.actual_duration_s = args.actual_s;
+    if (!file || args.background_given) options.hall.background_duration_s = args.background_s;
+    if (!file || args.triggers_given) options.triggers.max_triggers = args.triggers;
+    if (const std::string e = options.Validate(); !e.empty())
+      throw std::runtime_error("experiment table2: " + e);
+    seed = options.seed;
     const sim::RigSimulator simulator(options);
     const dataset::Recording rec = simulator.MakeRecording(/*with_hall=*/true);
     const sim::SimTruth truth = sim::MakeTruth(simulator, /*trajectory_rate_hz=*/1000.0);
-    std::mt19937_64 rng(args.seed ^ 0x7ab1e2);
+    std::mt19937_64 rng(seed ^ 0x7ab1e2);
     std::normal_distribution<double> g(0, 1);
     std::vector<dataset::MirrorPlaneRow> planes = truth.mirror_planes;
     for (auto& p : planes) {
@@ -150,7 +161,7 @@ void RunTable2(const Table2Args& args) {
     true_delta_t = truth.hall.delta_t_s;
     std::printf("poses: %zu simulated planes (truth + N(0, %.3f deg), N(0, %.3f mm)), seed %llu\n",
                 planes.size(), args.pose_sigma_deg, args.pose_sigma_mm,
-                static_cast<unsigned long long>(args.seed));
+                static_cast<unsigned long long>(seed));
   }
   double range[3] = {0, 0, 0};
   for (int k = 0; k < 3; ++k) {
@@ -169,7 +180,7 @@ void RunTable2(const Table2Args& args) {
               setup.background.readings.size());
   hall::HallCalibrationOptions options;
   options.repetitions = args.repetitions;
-  options.seed = args.seed;
+  options.seed = seed;
   common::ProgressLine progress("experiment table2",
                                 static_cast<size_t>(std::max(0, args.repetitions)),
                                 "repetitions");  // on a terminal only (stderr)
@@ -193,26 +204,42 @@ void AddTable2Command(CLI::App& app) {
   auto* cmd = exp->add_subcommand(
       "table2", "MSM paper Table II: Hall models (linear, sine, ours) with dt, 4:1 splits");
   auto args = std::make_shared<Table2Args>();
-  cmd->add_option("--config", args->config,
-                  "simulation config (default: built-in, as config/sim.yaml)")
-      ->check(CLI::ExistingFile);
-  cmd->add_option("--from", args->from, "use a solved interchange folder instead of simulating")
-      ->check(CLI::ExistingDirectory);
-  cmd->add_option("--seed", args->seed, "simulation and split seed");
+  auto* config = cmd->add_option("--config", args->config,
+                                 "simulation config (default: built-in, as config/sim.yaml, with "
+                                 "the paper's dataset sizes); its seed, Hall durations and "
+                                 "max_triggers are kept unless given below")
+                     ->check(CLI::ExistingFile);
+  auto* from =
+      cmd->add_option("--from", args->from, "use a solved interchange folder instead of simulating")
+          ->check(CLI::ExistingDirectory);
+  cmd->add_option("--seed", args->seed, "simulation and split seed (default 1, or --config's)")
+      ->each([args](const std::string&) { args->seed_given = true; });
   cmd->add_option("--repetitions", args->repetitions, "random splits")->check(CLI::PositiveNumber);
-  cmd->add_option("--pose-sigma-deg", args->pose_sigma_deg,
-                  "noise added to true angles when simulating");
-  cmd->add_option("--pose-sigma-mm", args->pose_sigma_mm,
-                  "noise added to true translations when simulating");
-  cmd->add_option("--actual-s", args->actual_s,
-                  "seconds of the actual Hall recording (paper: 130k readings)");
-  cmd->add_option("--background-s", args->background_s,
-                  "seconds of the background recording (paper: 65k readings)");
-  cmd->add_option(
-      "--triggers", args->triggers,
-      "trigger poses wanted (paper: 195; the simulator keeps those whose dots stay apart)");
-  cmd->add_flag("--exact-field", args->exact_field,
-                "also fit every model to the simulator's exact field (model error alone)");
+  // What only a simulation uses is refused with --from (it would be ignored).
+  std::vector<CLI::Option*> simulation_only{config};
+  simulation_only.push_back(cmd->add_option("--pose-sigma-deg", args->pose_sigma_deg,
+                                            "noise added to true angles when simulating"));
+  simulation_only.push_back(cmd->add_option("--pose-sigma-mm", args->pose_sigma_mm,
+                                            "noise added to true translations when simulating"));
+  simulation_only.push_back(
+      cmd->add_option("--actual-s", args->actual_s,
+                      "seconds of the actual Hall recording (default 130: the paper's 130k "
+                      "readings; or --config's)")
+          ->each([args](const std::string&) { args->actual_given = true; }));
+  simulation_only.push_back(
+      cmd->add_option("--background-s", args->background_s,
+                      "seconds of the background recording (default 65: the paper's 65k "
+                      "readings; or --config's)")
+          ->each([args](const std::string&) { args->background_given = true; }));
+  simulation_only.push_back(
+      cmd->add_option("--triggers", args->triggers,
+                      "trigger poses wanted (default 195: the paper's; or --config's "
+                      "max_triggers; the simulator keeps those whose dots stay apart)")
+          ->each([args](const std::string&) { args->triggers_given = true; }));
+  simulation_only.push_back(
+      cmd->add_flag("--exact-field", args->exact_field,
+                    "also fit every model to the simulator's exact field (model error alone)"));
+  for (CLI::Option* o : simulation_only) from->excludes(o);
   cmd->callback([args] { RunTable2(*args); });
 }
 

@@ -110,4 +110,21 @@ grep -q "summary.json has no mirror_poses (the mirror planes were not solved in 
 head -6 "$dir/s/truth/mirror_planes.csv" > "$dir/s/results/mirror_planes.csv"
 if "$msmcal" hall calibrate "$dir/s" > "$dir/five" 2>&1; then echo "expected a failure"; exit 1; fi
 grep -q "needs at least 6 mirror poses" "$dir/five" || { cat "$dir/five"; exit 1; }
+# experiment table2 --config keeps the file's seed, Hall durations and max_triggers (1 kHz: 1500
+# and 1000 readings, not the paper's 130k / 65k) unless an option replaces them; what only a
+# simulation uses is refused with --from.
+printf '%s\n' 'seed: 11' 'triggers: {min_separation_px: 10, max_triggers: 24}' \
+  'hall: {background_duration_s: 1.0, actual_duration_s: 1.5}' > "$dir/t2.yaml"
+"$msmcal" experiment table2 --config "$dir/t2.yaml" --repetitions 2 > "$dir/t2.out" 2>&1 || {
+  cat "$dir/t2.out"; exit 1; }
+grep -q "^poses: 24 simulated planes .*, seed 11$" "$dir/t2.out" || { cat "$dir/t2.out"; exit 1; }
+grep -q "^readings: actual 1500, background 1000$" "$dir/t2.out" || { cat "$dir/t2.out"; exit 1; }
+"$msmcal" experiment table2 --config "$dir/t2.yaml" --repetitions 2 --seed 3 --actual-s 2 \
+  > "$dir/t2b.out" 2>&1 || { cat "$dir/t2b.out"; exit 1; }
+grep -q ", seed 3$" "$dir/t2b.out" && grep -q "^readings: actual 2000, background 1000$" "$dir/t2b.out" ||
+  { cat "$dir/t2b.out"; exit 1; }
+if "$msmcal" experiment table2 --from "$dir/s" --triggers 5 > "$dir/t2c.out" 2>&1; then
+  echo "expected --from with --triggers to be refused"; exit 1
+fi
+grep -q -F -- "--from excludes --triggers" "$dir/t2c.out" || { cat "$dir/t2c.out"; exit 1; }
 echo "1 passed, 0 failed"
