@@ -73,6 +73,13 @@ double PatternPeriod(double f_fast_hz, double f_slow_hz, double resolution_hz) {
   return 1.0 / (static_cast<double>(g) * resolution_hz);
 }
 
+namespace {
+// What the 33520B's arbitrary waveforms allow at most (16 M points with option MEM, 1 M without;
+// its sample rate), as the mock instrument models them.
+constexpr int64_t kMaxArbPoints = 16'000'000;
+constexpr double kMaxArbSampleRateSps = 160e6;
+}  // namespace
+
 std::string TriggerDesignOptions::Validate() const {
   std::ostringstream os;
   if (!(spacing > 0.0)) {
@@ -85,8 +92,12 @@ std::string TriggerDesignOptions::Validate() const {
     os << "trigger.min_points = " << min_points << ": must be >= 8 (instrument minimum)";
   } else if (max_points < min_points) {
     os << "trigger.max_points = " << max_points << ": must be >= min_points (" << min_points << ")";
-  } else if (!(max_sample_rate_sps > 0.0)) {
-    os << "trigger.max_sample_rate_sps = " << max_sample_rate_sps << ": must be > 0";
+  } else if (max_points > kMaxArbPoints) {
+    os << "trigger.max_points = " << max_points << ": must be <= " << kMaxArbPoints
+       << " (the 33520B's arbitrary waveform memory with option MEM; 1 000 000 without)";
+  } else if (!(max_sample_rate_sps > 0.0) || max_sample_rate_sps > kMaxArbSampleRateSps) {
+    os << "trigger.max_sample_rate_sps = " << max_sample_rate_sps << ": must be in (0, "
+       << kMaxArbSampleRateSps << "] (the 33520B's arbitrary waveform sample rate)";
   } else if (!(pulse_width_s > 0.0)) {
     os << "trigger.pulse_width_s = " << pulse_width_s << ": must be > 0";
   } else if (!(max_duty > 0.0 && max_duty <= 1.0)) {

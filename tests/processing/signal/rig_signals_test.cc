@@ -227,6 +227,21 @@ TEST(TriggerDesignTest, ValidateNamesField) {
   o = {};
   o.max_points = 4;
   EXPECT_NE(o.Validate().find("trigger.max_points"), std::string::npos);
+  // Beyond what the instrument holds or plays (a fuzzed rig file asked for 60 M points: a 120 MB
+  // waveform designed for 2 s before the instrument would refuse it).
+  o = {};
+  o.max_points = 60'020'003;
+  EXPECT_NE(o.Validate().find("trigger.max_points = 60020003: must be <= 16000000"),
+            std::string::npos)
+      << o.Validate();
+  o.max_points = 16'000'000;  // the 33520B with option MEM
+  EXPECT_TRUE(o.Validate().empty()) << o.Validate();
+  o.max_sample_rate_sps = 250e6;
+  EXPECT_NE(o.Validate().find("trigger.max_sample_rate_sps = 2.5e+08: must be in (0, 1.6e+08]"),
+            std::string::npos)
+      << o.Validate();
+  o.max_sample_rate_sps = std::nan("");
+  EXPECT_NE(o.Validate().find("trigger.max_sample_rate_sps"), std::string::npos);
   EXPECT_TRUE(TriggerDesignOptions{}.Validate().empty());
 }
 
