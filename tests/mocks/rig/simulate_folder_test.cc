@@ -49,6 +49,11 @@ class TempCleanup : public ::testing::Environment {
 };
 const auto* const kTempCleanup = ::testing::AddGlobalTestEnvironment(new TempCleanup);
 
+// The msmcal binary of this build (the CLI tests skip when it is not built).
+fs::path MsmcalBinary() {
+  return fs::path(EnvOr("MSMCAL_BINARY_DIR", MSMCAL_TEST_BINARY_DIR)) / "app" / "msmcal";
+}
+
 // Small and quick: quarter-resolution camera, short Hall recordings.
 constexpr const char* kSmallConfig = R"(seed: 11
 camera: {width: 612, height: 512, fx: 500, fy: 500, cx: 305.75, cy: 255.75}
@@ -104,8 +109,7 @@ TEST(SimulateFolderTest, WritesReadsBackAndValidates) {
 }
 
 TEST(SimulateFolderTest, CliIsDeterministicPerSeed) {
-  const fs::path msmcal =
-      fs::path(EnvOr("MSMCAL_BINARY_DIR", MSMCAL_TEST_BINARY_DIR)) / "app" / "msmcal";
+  const fs::path msmcal = MsmcalBinary();
   if (!fs::exists(msmcal)) GTEST_SKIP() << "msmcal binary not built";
   const fs::path cfg = TempDir("small.yaml");
   std::ofstream(cfg) << kSmallConfig;
@@ -139,8 +143,7 @@ TEST(SimulateFolderTest, CliIsDeterministicPerSeed) {
 // computed from the old data; a recorded session's folder (session.db) or any folder without
 // truth/ is refused and left as it was.
 TEST(SimulateFolderTest, OverwriteReplacesOnlyASimulatedFolder) {
-  const fs::path msmcal =
-      fs::path(EnvOr("MSMCAL_BINARY_DIR", MSMCAL_TEST_BINARY_DIR)) / "app" / "msmcal";
+  const fs::path msmcal = MsmcalBinary();
   if (!fs::exists(msmcal)) GTEST_SKIP() << "msmcal binary not built";
   const fs::path cfg = TempDir("small_ow.yaml");
   std::ofstream(cfg) << kSmallConfig;
