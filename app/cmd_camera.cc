@@ -194,7 +194,8 @@ struct MockArgs {
   int sensor_width = 3840;
   int sensor_height = 2748;
   double frame_rate_hz = 10;
-  std::string fault;  // lost@N
+  std::string fault;               // lost@N
+  bool sensor_size_given = false;  // --sensor-width/--sensor-height on the command line
 };
 
 void RunMockCamera(const MockArgs& args) {
@@ -203,6 +204,9 @@ void RunMockCamera(const MockArgs& args) {
   int sensor_height = args.sensor_height;
   if (args.scene.rfind("sim:", 0) == 0) {
     // The simulated rig's frames at its camera's resolution (pixels match its camera model).
+    if (args.sensor_size_given)
+      throw CLI::ValidationError("--sensor-width/--sensor-height",
+                                 "not with --scene sim: (the sensor is the simulator's camera's)");
     auto sim = std::make_shared<const msmcal::sim::RigSimulator>(
         msmcal::sim::LoadSimOptions(args.scene.substr(4)));
     sensor_width = sim->camera().width;
@@ -295,8 +299,15 @@ void AddCameraCommands(CLI::App& app) {
   mock_camera->add_option("--serial", mock_args->serial, "Serial number (max 15 characters)");
   mock_camera->add_option("--scene", mock_args->scene,
                           "pattern | replay:DIR (PNG files) | sim:CONFIG (rig simulator YAML)");
-  mock_camera->add_option("--sensor-width", mock_args->sensor_width, "Sensor width, pixels");
-  mock_camera->add_option("--sensor-height", mock_args->sensor_height, "Sensor height, pixels");
+  const auto size_given = [mock_args](const std::string&) { mock_args->sensor_size_given = true; };
+  mock_camera
+      ->add_option("--sensor-width", mock_args->sensor_width,
+                   "Sensor width, pixels (not with --scene sim:, whose camera sets it)")
+      ->each(size_given);
+  mock_camera
+      ->add_option("--sensor-height", mock_args->sensor_height,
+                   "Sensor height, pixels (not with --scene sim:, whose camera sets it)")
+      ->each(size_given);
   mock_camera->add_option("--frame-rate", mock_args->frame_rate_hz, "Initial frame rate, Hz");
   mock_camera->add_option("--fault", mock_args->fault,
                           "lost@N: stop serving after N frames, as an unplugged camera "

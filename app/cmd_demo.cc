@@ -73,6 +73,13 @@ void RunDemo(const DemoArgs& args) {
                              ": exists and is not empty (choose another --out, or continue an "
                              "interrupted session with `msmcal resume " +
                              out.string() + "`)");
+  // Checked before the run, not found after it: the store is created new.
+  if (!args.store.empty() && fs::exists(args.store))
+    throw CLI::ValidationError("--store", args.store +
+                                              " already exists (the finished session is imported "
+                                              "into a new session-store folder)");
+  if (args.web.enabled() && !args.guided)
+    throw CLI::ValidationError("--ui", "--ui web needs --guided");
 
   std::printf(
       "msmcal demo: starting the mock rig (2 generators on loopback SCPI, GigE Vision "
@@ -80,10 +87,7 @@ void RunDemo(const DemoArgs& args) {
       acq.camera_address.c_str());
   std::fflush(stdout);
   std::unique_ptr<WebUi> web;
-  if (args.web.enabled()) {
-    if (!args.guided) throw CLI::ValidationError("--ui", "--ui web needs --guided");
-    web = std::make_unique<WebUi>(args.web);
-  }
+  if (args.web.enabled()) web = std::make_unique<WebUi>(args.web);
   std::vector<std::string> notes;
   acq.progress = [&](const std::string& line) {
     std::printf("[%6.1f s] %s\n", elapsed(), line.c_str());
@@ -138,7 +142,8 @@ void AddDemoCommands(CLI::App& app) {
   auto* demo = app.add_subcommand(
       "demo", "Run a complete simulated calibration through the real drivers and mock instruments");
   demo->add_option("--out", args->out, "Session folder to create (must be absent or empty)");
-  demo->add_option("--seed", args->seed, "Simulator seed (default: the config's)");
+  demo->add_option("--seed", args->seed, "Simulator seed (default: the config's)")
+      ->check(NonNegativeSeed());
   demo->add_option("--config", args->config, "Simulator configuration (config/sim.yaml keys)");
   demo->add_option("--camera-address", args->camera_address,
                    "Address the mock GigE Vision camera serves on (port 3956)");

@@ -116,7 +116,8 @@ void AddMockRigCommands(CLI::App& app) {
   rig->add_option("--world", rig_args->world,
                   "The world's simulation config (default: built-in = config/sim.yaml)")
       ->check(CLI::ExistingFile);
-  rig->add_option("--seed", rig_args->seed, "Override the world's seed");
+  rig->add_option("--seed", rig_args->seed, "Override the world's seed")
+      ->check(msmcal::app::NonNegativeSeed());
   rig->add_option("--exposure", rig_args->exposure_s,
                   "Camera integration window per frame, s (>= one pattern period shows every "
                   "pulse)");

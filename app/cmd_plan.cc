@@ -1,9 +1,9 @@
-// `msmcal plan --rig RIG.yaml --out PLAN_DIR [--force] [--setups FILE]`: designs a session plan from the rig file
-// (sessions/plan, docs/lab-path.md) and writes PLAN_DIR/session.yaml + camera.yaml in the
-// interchange format, then prints the summary: frames, the prompts a person will see, the
-// expected duration and the disk needed. Refuses what the rig's limits forbid (the message names
-// the field, the value and the limit; exit status 1), before writing anything. --setups FILE also
-// writes the plan's set-ups (sessions/setup) as JSON lines, as a hook would receive them.
+// `msmcal plan --rig RIG.yaml --out PLAN_DIR [--force] [--setups FILE]`: designs a session plan
+// from the rig file (sessions/plan, docs/lab-path.md) and writes PLAN_DIR/session.yaml +
+// camera.yaml in the interchange format, then prints the summary: frames, the prompts a person will
+// see, the expected duration and the disk needed. Refuses what the rig's limits forbid (the message
+// names the field, the value and the limit; exit status 1), before writing anything. --setups FILE
+// also writes the plan's set-ups (sessions/setup) as JSON lines, as a hook would receive them.
 #include <CLI/CLI.hpp>
 #include <cstdio>
 #include <filesystem>

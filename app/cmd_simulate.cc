@@ -150,8 +150,7 @@ void AddSimulateCommand(CLI::App& app) {
   cmd->add_option("--config", args->config,
                   "simulation config YAML (default: built-in = config/sim.yaml)")
       ->check(CLI::ExistingFile);
-  cmd->add_option("--seed", args->seed, "override the config's seed")
-      ->check(CLI::NonNegativeNumber);
+  cmd->add_option("--seed", args->seed, "override the config's seed")->check(NonNegativeSeed());
   cmd->add_flag("--no-images", args->no_images, "skip rendering the step1/step2 PNGs");
   cmd->add_flag("--overwrite", args->overwrite,
                 "replace a previously simulated folder (removes only its own entries)");

@@ -65,6 +65,7 @@ struct SweepArgs {
   std::string camera_address = "127.0.0.1";
   bool camera_given = false;  // a rig sweep: --camera-address overrides the rig file's camera
   int hook_timeout_s = 600;
+  bool hook_timeout_given = false;
   int threads = 2;
   bool list = false;
 };
@@ -365,9 +366,11 @@ void RunSweepCommand(const SweepArgs& args) {
     RunRigSweep(args, plan_file, dir);
     return;
   }
-  if (!args.reference.empty() || !args.operator_spec.empty() || !args.mcu.empty())
+  if (!args.reference.empty() || !args.operator_spec.empty() || !args.mcu.empty() ||
+      args.hook_timeout_given)
     throw std::runtime_error(
-        "sweep: --reference, --operator and --mcu are for a rig sweep (--rig RIG)");
+        "sweep: --reference, --operator, --mcu and --hook-timeout are for a rig sweep (--rig "
+        "RIG)");
   if (fs::exists(dir / "sweep.yaml") && IsRigSweepPlan(dir / "sweep.yaml"))
     throw std::runtime_error(dir.string() +
                              " holds a rig sweep (its sweep.yaml's base: is a rig file): continue "
@@ -438,12 +441,13 @@ void AddSweepCommands(CLI::App& app) {
   cmd->add_option("--mcu", args->mcu,
                   "A rig sweep: Hall MCU serial device (default: the rig file's hall_mcu.device; "
                   "on the twin its --hall-link)");
-  cmd->add_option("--hook-timeout", args->hook_timeout_s,
-                  "A rig sweep: seconds a hook may take per call")
-      ->check(CLI::Range(1, 86400));
-  cmd->callback([args, camera] {
+  auto* hook_timeout = cmd->add_option("--hook-timeout", args->hook_timeout_s,
+                                       "A rig sweep: seconds a hook may take per call")
+                           ->check(CLI::Range(1, 86400));
+  cmd->callback([args, camera, hook_timeout] {
     const gen::OpenGeneratorsGuard signals;  // from the start: docs/watchdog.md
     args->camera_given = camera->count() > 0;
+    args->hook_timeout_given = hook_timeout->count() > 0;
     RunSweepCommand(*args);
   });
 }

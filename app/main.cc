@@ -3,7 +3,11 @@
 
 #include <CLI/CLI.hpp>
 #include <algorithm>
+#include <cmath>
+#include <cstdlib>
 #include <exception>
+#include <regex>
+#include <string>
 #include <utility>
 #include <vector>
 
@@ -40,6 +44,34 @@ void AddRegisteredCommands(CLI::App& app) {
   for (auto& [order, registrar] : registry) registrar(app);
 }
 
+// One boundary check for every number on the command line, run before any command does anything:
+// CLI11 (2.1) lets "nan" and "inf" through its range checks and reads integers in base 0 ("0100"
+// is 64, "0x10" is 16). A floating-point value must be finite, an integer plain decimal.
+void CheckNumbers(const CLI::App& app) {
+  static const std::regex kDecimal("[+-]?(0|[1-9][0-9]*)");
+  for (const CLI::Option* option : app.get_options()) {
+    if (option->count() == 0) continue;
+    const std::string type = option->get_type_name();
+    const bool floating = type.find("FLOAT") != std::string::npos;
+    const bool integer = type.find("INT") != std::string::npos;
+    if (!floating && !integer) continue;
+    for (const std::string& value : option->results()) {
+      if (floating) {
+        char* end = nullptr;
+        const double x = std::strtod(value.c_str(), &end);
+        if (end != value.c_str() && *end == '\0' && !std::isfinite(x))
+          throw CLI::ValidationError(option->get_name(),
+                                     "'" + value + "': expected a finite number");
+      } else if (!std::regex_match(value, kDecimal)) {
+        throw CLI::ValidationError(
+            option->get_name(),
+            "'" + value + "': expected a decimal integer (no leading zeros, no 0x)");
+      }
+    }
+  }
+  for (const CLI::App* sub : app.get_subcommands()) CheckNumbers(*sub);
+}
+
 }  // namespace msmcal::app
 
 int main(int argc, char** argv) {
@@ -48,7 +80,11 @@ int main(int argc, char** argv) {
   std::string log_level = "info";
   app.add_option("--log-level", log_level, "trace|debug|info|warn|error")
       ->check(CLI::IsMember({"trace", "debug", "info", "warn", "error"}));
-  app.parse_complete_callback([&] { spdlog::set_level(spdlog::level::from_str(log_level)); });
+  // Runs after parsing, before any subcommand's callback (the commands themselves).
+  app.parse_complete_callback([&] {
+    msmcal::app::CheckNumbers(app);
+    spdlog::set_level(spdlog::level::from_str(log_level));
+  });
   msmcal::app::AddRegisteredCommands(app);
   try {
     app.parse(argc, argv);

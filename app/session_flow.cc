@@ -250,10 +250,10 @@ orchestrator::SessionResult RunLabAcquisition(const fs::path& out,
     config << YAML::Key << "camera_exposure_us" << YAML::Value
            << common::ShortestDouble(*options.camera_exposure_us);
   config << YAML::Key << "background_seconds" << YAML::Value
-         << common::ShortestDouble(options.background_seconds) << YAML::Key
-         << "actual_min_seconds" << YAML::Value
-         << common::ShortestDouble(options.actual_min_seconds) << YAML::Key << "operator"
-         << YAML::Value << options.operator_spec << YAML::Key << "poses" << YAML::Value
+         << common::ShortestDouble(options.background_seconds) << YAML::Key << "actual_min_seconds"
+         << YAML::Value << common::ShortestDouble(options.actual_min_seconds) << YAML::Key
+         << "operator" << YAML::Value << options.operator_spec << YAML::Key << "hook_timeout_ms"
+         << YAML::Value << options.hook_timeout_ms << YAML::Key << "poses" << YAML::Value
          << YAML::Flow << YAML::BeginSeq;
   for (const auto& p : options.poses)
     config << YAML::Flow << YAML::BeginSeq << common::ShortestDouble(p.distance_mm)
@@ -389,6 +389,12 @@ LabAcquisitionOptions LabOptionsFromJournal(const fs::path& dir, const std::stri
     if (n["background_seconds"]) o.background_seconds = n["background_seconds"].as<double>();
     if (n["actual_min_seconds"]) o.actual_min_seconds = n["actual_min_seconds"].as<double>();
     if (n["operator"]) o.operator_spec = n["operator"].as<std::string>();
+    if (n["hook_timeout_ms"]) {  // journals before session 26 have none: the default
+      o.hook_timeout_ms = n["hook_timeout_ms"].as<int>();
+      if (o.hook_timeout_ms <= 0 || o.hook_timeout_ms > 86'400'000)
+        throw std::runtime_error(where + ": hook_timeout_ms = " +
+                                 std::to_string(o.hook_timeout_ms) + ": expected 1..86400000");
+    }
     if (n["reference"]) o.reference = n["reference"].as<std::string>();
     if (n["poses"])
       for (const auto& p : n["poses"]) o.poses.push_back({p[0].as<double>(), p[1].as<double>()});

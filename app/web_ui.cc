@@ -10,15 +10,17 @@
 namespace msmcal::app {
 
 void AddWebUiOptions(CLI::App* command, WebUiArgs* args) {
-  command->add_option("--ui", args->ui,
-                      "web[:PORT]: the live view in a browser (camera image with the quality "
-                      "gate's overlay, instructions, Ready / Repeat / Abort, live figures, rig "
-                      "state) at http://127.0.0.1:PORT/ (default " +
-                          std::to_string(live_view::kDefaultLivePort) +
-                          "; 0: any free port; the URL is printed)");
-  command->add_option("--ui-bind", args->bind,
-                      "Serve the live view on this address instead of 127.0.0.1 (e.g. 0.0.0.0 "
-                      "for the lab network); the printed URL then carries a random access token");
+  CLI::Option* ui = command->add_option(
+      "--ui", args->ui,
+      "web[:PORT]: the live view in a browser (camera image with the quality "
+      "gate's overlay, instructions, Ready / Repeat / Abort, live figures, rig "
+      "state) at http://127.0.0.1:PORT/ (default " +
+          std::to_string(live_view::kDefaultLivePort) + "; 0: any free port; the URL is printed)");
+  command
+      ->add_option("--ui-bind", args->bind,
+                   "Serve the live view on this address instead of 127.0.0.1 (e.g. 0.0.0.0 "
+                   "for the lab network); the printed URL then carries a random access token")
+      ->needs(ui);  // alone it would be ignored
 }
 
 // The view, once Start()ed, shared with the observers handed to the orchestrator (which may be

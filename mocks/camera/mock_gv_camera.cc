@@ -60,12 +60,13 @@ struct MockGvCamera::Impl {
   ArvFakeCamera* fake = nullptr;     // owned by server
   uint32_t initial_exposure_us = 0;  // the register when serving began
   std::string xml_path;
-  // The lost_after_frames fault: the fill callback (on the server's thread, which unref joins)
-  // signals `loser`, which stops the server.
+  // The lost_after_frames fault: the fill callback of the first frame past the limit (on the
+  // server's only thread, which also answers GVCP) waits here until the camera is destroyed, so
+  // neither that frame nor any control reply leaves: the camera falls silent at once, with no
+  // second thread to race against the next frame.
   std::mutex mu;
   std::condition_variable cv;
-  bool lose = false, closing = false;
-  std::thread loser;
+  bool closing = false;
 
   void StopServer() {
     ArvGvFakeCamera* s = nullptr;
@@ -106,6 +107,13 @@ void MockGvCamera::Fill(void* buffer_ptr, void* self_ptr, uint32_t /*exposure_us
   auto* data = static_cast<uint8_t*>(const_cast<void*>(arv_buffer_get_data(buffer, nullptr)));
   if (data == nullptr) return;
   const uint64_t index = self->frames_served_.load();
+  const int64_t lost_after = self->options_.lost_after_frames;
+  if (lost_after >= 0 && index >= static_cast<uint64_t>(lost_after)) {
+    self->lost_.store(true);
+    std::unique_lock lock(self->impl_->mu);
+    self->impl_->cv.wait(lock, [&] { return self->impl_->closing; });
+    return;  // the destructor has set every packet of this frame to be dropped
+  }
   const auto format = FromArv(pixel_format);
   if (!format) {
     std::memset(
@@ -116,14 +124,6 @@ void MockGvCamera::Fill(void* buffer_ptr, void* self_ptr, uint32_t /*exposure_us
                   static_cast<int64_t>(arv_buffer_get_timestamp(buffer)), index);
   }
   self->frames_served_.store(index + 1);
-  const int64_t lost_after = self->options_.lost_after_frames;
-  if (lost_after >= 0 && index + 1 >= static_cast<uint64_t>(lost_after)) {
-    {
-      std::lock_guard lock(self->impl_->mu);
-      self->impl_->lose = true;
-    }
-    self->impl_->cv.notify_all();
-  }
 }
 
 std::optional<double> MockGvCamera::ClientExposureUs() const {
@@ -198,30 +198,20 @@ std::unique_ptr<MockGvCamera> MockGvCamera::Start(const MockGvCameraOptions& opt
             Fill(buffer, data, exposure, gain, fmt);
           }),
       camera.get());
-  if (options.lost_after_frames >= 0) {
-    MockGvCamera* self = camera.get();
-    impl.loser = std::thread([self] {
-      Impl& i = *self->impl_;
-      {
-        std::unique_lock lock(i.mu);
-        i.cv.wait(lock, [&] { return i.lose || i.closing; });
-        if (i.closing) return;
-      }
-      i.StopServer();
-      self->lost_.store(true);
-    });
-  }
   return camera;
 }
 
 MockGvCamera::~MockGvCamera() {
   if (impl_) {
+    // A server held by the lost fault sends nothing more: its pending frame's packets are all
+    // dropped ("gvsp-lost-ratio" 1) before its fill callback is released.
+    if (options_.lost_after_frames >= 0 && impl_->server != nullptr)
+      g_object_set(impl_->server, "gvsp-lost-ratio", 1.0, nullptr);
     {
       std::lock_guard lock(impl_->mu);
       impl_->closing = true;
     }
     impl_->cv.notify_all();
-    if (impl_->loser.joinable()) impl_->loser.join();
     impl_->StopServer();
     if (!impl_->xml_path.empty()) std::remove(impl_->xml_path.c_str());
   }

@@ -39,7 +39,8 @@ struct MockGvCameraOptions {
   int height = 0;
   double frame_rate_hz = 10.0;
   // Fault (off when < 0): after this many frames the server stops, as an unplugged camera does
-  // (GVCP and the stream go silent; clients see timeouts). `msmcal mock camera --fault lost@N`.
+  // (GVCP and the stream go silent when frame N+1 is due; clients see timeouts; exactly N frames
+  // are sent). `msmcal mock camera --fault lost@N`.
   int64_t lost_after_frames = -1;
 
   std::string Validate() const;
@@ -61,7 +62,7 @@ class MockGvCamera {
   // when it answered: the readiness check behind "camera ready at ADDRESS".
   bool Answers() const;
   uint64_t frames_served() const { return frames_served_.load(); }
-  // True once the lost_after_frames fault has stopped the server.
+  // True once the lost_after_frames fault has silenced the server.
   bool lost() const { return lost_.load(); }
   // The exposure a client set through GenICam (ExposureTime / ExposureTimeAbs, one register),
   // in microseconds; none while the register still holds the value it had when serving began.

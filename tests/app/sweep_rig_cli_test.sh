@@ -67,9 +67,17 @@ if "$msmcal" sweep "$src/config/sweep-example.yaml" --out "$dir/simmcu" --mcu /t
     > "$dir/simmcu.out" 2>&1; then
   echo "FAIL: --mcu accepted without --rig"; cat "$dir/simmcu.out"; exit 1
 fi
-grep -q -F -- "--mcu are for a rig sweep (--rig RIG)" "$dir/simmcu.out" || {
+grep -q -F -- "--hook-timeout are for a rig sweep (--rig RIG)" "$dir/simmcu.out" || {
   cat "$dir/simmcu.out"; exit 1; }
 test ! -e "$dir/simmcu"
+# So does --hook-timeout (a simulated sweep has no hook: it would be ignored).
+if "$msmcal" sweep "$src/config/sweep-example.yaml" --out "$dir/simhook" --hook-timeout 60 \
+    > "$dir/simhook.out" 2>&1; then
+  echo "FAIL: --hook-timeout accepted without --rig"; cat "$dir/simhook.out"; exit 1
+fi
+grep -q -F -- "--hook-timeout are for a rig sweep (--rig RIG)" "$dir/simhook.out" || {
+  cat "$dir/simhook.out"; exit 1; }
+test ! -e "$dir/simhook"
 # A rig sweep's folder (sweep.yaml as the sweep stores it: base: holds every rig file field).
 # `msmcal report` reads it as a rig sweep (the simulator's options refuse base.generators), and
 # continuing it without --rig is refused with what it needs; nothing is run or written.

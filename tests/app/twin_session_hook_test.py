@@ -20,6 +20,7 @@ frames' stretches (at least 10 periods here) are left out. Its delta_t is printe
 truth, not asserted: with this variant's 26 poses and 1 s background the fit lands on an alias
 near dt +- 1/(2 f_fast) (docs/hall-calibration.md, "What limits dt"; the unit test
 HallModel.RecoversTheDelayFromASessionWithNeutralAndFastOnlyStretches asserts dt).
+The journal (session.db) keeps --hook-timeout for `msmcal resume`.
 Runs in its own network namespace (ports 15025/15026, GigE Vision 3956).
 
 usage: twin_session_hook_test.py MSMCAL SOURCE_DIR
@@ -29,6 +30,7 @@ import os
 import re
 import select
 import signal
+import sqlite3
 import subprocess
 import sys
 import tempfile
@@ -84,7 +86,8 @@ def main():
             lines += [l.decode().strip() for l in done]
         out = os.path.join(tmp, "session")
         p = subprocess.run([msmcal, "session", "run", "--rig", rig, "--plan", plan, "--out", out,
-                            "--operator", "hook:%s mock hands --socket %s" % (msmcal, sock)],
+                            "--operator", "hook:%s mock hands --socket %s" % (msmcal, sock),
+                            "--hook-timeout", "900"],
                            capture_output=True, text=True, timeout=600)
         log = p.stdout + p.stderr
     finally:
@@ -95,6 +98,12 @@ def main():
             twin.kill()
             fail("the twin did not stop on SIGTERM")
 
+    # The journal keeps the hook's timeout, so `msmcal resume` waits as long as the run did.
+    db = sqlite3.connect("file:%s?mode=ro" % os.path.join(out, "session.db"), uri=True)
+    config_yaml = db.execute("SELECT yaml FROM config WHERE id = 1").fetchone()[0]
+    db.close()
+    if "hook_timeout_ms: 900000" not in config_yaml:
+        fail("the journal's configuration has no hook_timeout_ms: 900000:\n" + config_yaml[:800])
     setups = re.findall(r"hook: set-up (\d+)/(\d+) \((\w+)\): exit status (\d+)", log)
     if not setups or any(s[3] != "0" for s in setups) or int(setups[-1][0]) != int(setups[-1][1]):
         fail("set-ups not all confirmed: %r\n%s" % (setups, log[-3000:]))
