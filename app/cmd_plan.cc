@@ -50,7 +50,7 @@ void AddPlanCommand(CLI::App& app) {
   auto args = std::make_shared<PlanArgs>();
   auto* cmd = app.add_subcommand(
       "plan", "Design a session plan (session.yaml + camera.yaml) from the rig file");
-  cmd->add_option("--rig", args->rig, "Rig file (docs/rig-file.md)");
+  cmd->add_option("--rig", args->rig, "Rig file (docs/rig-file.md)")->capture_default_str();
   cmd->add_option("--out", args->out, "Plan folder to write")->required();
   cmd->add_flag("--force", args->force, "Replace a plan already in the folder");
   cmd->add_option("--setups", args->setups,

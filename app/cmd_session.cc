@@ -191,7 +191,8 @@ void AddSessionCommands(CLI::App& app) {
   auto args = std::make_shared<SessionCheckArgs>();
   auto* check = session->add_subcommand(
       "check", "Rig check: identify every instrument, generator lock, camera format, MCU stream");
-  check->add_option("--rig", args->rig, "Rig configuration (generators:, hall_mcu:)");
+  check->add_option("--rig", args->rig, "Rig configuration (generators:, hall_mcu:)")
+      ->capture_default_str();
   check->add_option("--camera", args->camera,
                     "Camera: GigE Vision IP address, or V4L2 device (default: the rig file's)");
   check->add_option("--mcu", args->mcu, "Hall MCU serial device (default: the rig file's)");
@@ -204,7 +205,7 @@ void AddSessionCommands(CLI::App& app) {
   auto* run = session->add_subcommand(
       "run",
       "A guided calibration session on the real rig (journalled; `msmcal resume` continues it)");
-  run->add_option("--rig", run_args->rig, "Rig file (docs/rig-file.md)");
+  run->add_option("--rig", run_args->rig, "Rig file (docs/rig-file.md)")->capture_default_str();
   run->add_option("--camera", run_args->camera,
                   "Camera: GigE Vision IP address, or V4L2 device (default: the rig file's)");
   run->add_option("--mcu", run_args->mcu, "Hall MCU serial device (default: the rig file's)");

@@ -111,7 +111,7 @@ refuse_run() {  # expected message, options...
   test ! -e "$dir/new"
 }
 refuse_run "--frame-rate = 5000: must be in (0, 1000] Hz" --frame-rate 5000
-refuse_run "--frame-rate = nan: must be in (0, 1000] Hz" --frame-rate nan
+refuse_run "--frame-rate: 'nan': expected a finite number" --frame-rate nan
 refuse_run "--frame-rate = 0: must be in (0, 1000] Hz" --frame-rate 0
 refuse_run "--frame-rate = 10: its frame period 1e6 / 10 = 100000 us is shorter than camera.exposure_us = 220000 us" --frame-rate 10
 refuse_run "--hook-timeout = 100000: must be in (0, 86400] s" --hook-timeout 100000
