@@ -7,9 +7,11 @@
 
 #include <Eigen/Dense>
 #include <Eigen/SparseCore>
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstddef>
+#include <limits>
 #include <memory>
 #include <memory_resource>
 #include <sstream>
@@ -337,6 +339,17 @@ Line BeamFromChart(const Line& reference, const Eigen::Vector4d& x) {
 Rigid3d TransformFromChart(const Rigid3d& reference, const Eigen::Matrix<double, 6, 1>& x) {
   return Rigid3d(geometry::So3Exp(x.head<3>()) * reference.RotationMatrix(),
                  reference.translation + x.tail<3>());
+}
+
+double DirectionSigmaRad(const Eigen::Matrix2d& cov) {
+  return std::sqrt(std::max(0.0, cov.trace()));
+}
+
+double MleResult::BeamDirectionSigmaRad(int b) const {
+  const int o = OffsetBeam(b);
+  if (b < 0 || o + 2 > other_cov.rows() || o + 2 > other_cov.cols())
+    return std::numeric_limits<double>::quiet_NaN();
+  return DirectionSigmaRad(other_cov.block<2, 2>(o, o));
 }
 
 Eigen::MatrixXd MleResult::JointCovariance(int j) const {

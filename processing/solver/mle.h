@@ -77,7 +77,15 @@ struct MleResult {
   int num_poses = 0;
   // Joint covariance of [plane j (3), others] (3 + num_other square).
   Eigen::MatrixXd JointCovariance(int plane) const;
+  // Beam b's direction sigma in {W} as an RMS angle, rad (DirectionSigmaRad of its direction
+  // block; summary.json beam_direction_sigma_deg); NaN when other_cov does not hold beam b.
+  double BeamDirectionSigmaRad(int b) const;
 };
+
+// The RMS angle (rad) of a direction whose two chart coordinates are angles: sqrt of the trace of
+// their 2x2 covariance (negative rounding clamped to 0). A plane's normal: the top-left block of
+// its chart covariance (summary.json rms_sigma_normal_world_deg); a beam's: BeamDirectionSigmaRad.
+double DirectionSigmaRad(const Eigen::Matrix2d& cov);
 
 // Refines `initial`. Residuals: corners with isotropic obs.corner_sigma_px, dots whitened by
 // their 2x2 covariance.

@@ -363,14 +363,15 @@ MirrorPosesSummary SummariseSolve(const solver::SolveOutput& out, double solve_t
   s.rms_sigma_trans_mm = std::sqrt(st / n);
   if (out.mle.usable) {
     for (size_t b = 0; b < out.beams.size(); ++b) {
-      const int o = out.mle.OffsetBeam(static_cast<int>(b));
-      if (o + 2 > out.mle.other_cov.rows()) break;
-      s.beam_direction_sigma_deg.push_back(
-          std::sqrt(std::max(0.0, out.mle.other_cov.block<2, 2>(o, o).trace())) *
-          common::kDegPerRad);
+      const double sigma = out.mle.BeamDirectionSigmaRad(static_cast<int>(b));
+      if (!std::isfinite(sigma)) break;
+      s.beam_direction_sigma_deg.push_back(sigma * common::kDegPerRad);
     }
     double sn = 0;
-    for (const auto& c : out.mle.plane_cov) sn += std::max(0.0, c.topLeftCorner<2, 2>().trace());
+    for (const auto& c : out.mle.plane_cov) {
+      const double sigma = solver::DirectionSigmaRad(c.topLeftCorner<2, 2>());
+      sn += sigma * sigma;
+    }
     if (!out.mle.plane_cov.empty())
       s.rms_sigma_normal_world_deg =
           std::sqrt(sn / static_cast<double>(out.mle.plane_cov.size())) * common::kDegPerRad;

@@ -131,11 +131,8 @@ TEST(HonestySimTest, NormalisedErrorsHaveUnitRms) {
         std::printf("  beam %d: angle err %.4f deg, chi2/4 %.2f\n", out.beams[b].beam,
                     geometry::AngleBetween(l.v, t.v) * common::kDegPerRad,
                     maha(e, m.OffsetBeam(b)) / 4);
-        // The direction sigma summary.json reports (SummariseSolve: the RMS angle, sqrt of the
-        // trace of the direction block).
-        const int o = m.OffsetBeam(static_cast<int>(b));
-        zbeam.Add(geometry::AngleBetween(l.v, t.v) /
-                  std::sqrt(m.other_cov.block<2, 2>(o, o).trace()));
+        // The direction sigma summary.json reports (SummariseSolve: the RMS angle).
+        zbeam.Add(geometry::AngleBetween(l.v, t.v) / m.BeamDirectionSigmaRad(static_cast<int>(b)));
       }
     }
     for (const auto& sp : out.support_planes) {
@@ -148,7 +145,7 @@ TEST(HonestySimTest, NormalisedErrorsHaveUnitRms) {
       if (tp.n.dot(sp.plane_in_world.n) < 0) tp = geometry::Plane{-tp.n, -tp.d};
       const Eigen::Vector3d e = PlaneToChart(sp.plane_in_world, tp);
       // The normal in {W} against summary.json's rms_sigma_normal_world_deg's per-plane term.
-      znormal.Add(e.head<2>().norm() / std::sqrt(sp.cov.topLeftCorner<2, 2>().trace()));
+      znormal.Add(e.head<2>().norm() / DirectionSigmaRad(sp.cov.topLeftCorner<2, 2>()));
       const auto pose = geometry::PoseFromWorldPlane(truth_frame, tp);
       std::printf(
           "  %s j=%d alpha %.2f: err (%.4f %.4f deg, %.4f mm) sd (%.4f %.4f, %.4f) chi2/3 %.2f\n",

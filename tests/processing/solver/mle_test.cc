@@ -36,6 +36,26 @@ TEST(InitialMirrorPlaneTest, ParallelLightPathPlanesAreRejected) {
   EXPECT_FALSE(InitialMirrorPlane({a, b}, {Eigen::Vector3d(5, 0, 1), Eigen::Vector3d(5, 1, 1)}));
 }
 
+TEST(DirectionSigmaTest, RmsAngleOfTheDirectionBlock) {
+  // Closed form: sqrt(trace) of the 2x2 angle block; a slightly negative trace from rounding is 0.
+  Eigen::Matrix2d c;
+  c << 9e-8, 5e-8, 5e-8, 16e-8;
+  EXPECT_DOUBLE_EQ(DirectionSigmaRad(c), 5e-4);
+  EXPECT_EQ(DirectionSigmaRad(Eigen::Matrix2d::Identity() * -1e-20), 0.0);
+
+  // Beam b's block sits at OffsetBeam(b) = 12 + 6 * num_poses + 4 * b of other_cov.
+  MleResult m;
+  m.num_poses = 2;
+  const int n = 12 + 6 * 2 + 4 * 2;  // two beams
+  m.other_cov = Eigen::MatrixXd::Identity(n, n);
+  m.other_cov.block<2, 2>(m.OffsetBeam(1), m.OffsetBeam(1)) = c;
+  EXPECT_DOUBLE_EQ(m.BeamDirectionSigmaRad(0), std::sqrt(2.0));
+  EXPECT_DOUBLE_EQ(m.BeamDirectionSigmaRad(1), 5e-4);
+  EXPECT_TRUE(std::isnan(m.BeamDirectionSigmaRad(2)));  // not in the covariance
+  EXPECT_TRUE(std::isnan(m.BeamDirectionSigmaRad(-1)));
+  EXPECT_TRUE(std::isnan(MleResult{}.BeamDirectionSigmaRad(0)));  // no covariance at all
+}
+
 TEST(ChartTest, PlaneChartRoundTrip) {
   const geometry::Plane ref{Eigen::Vector3d(0.3, -0.2, 0.9).normalized(), 12.0};
   const Eigen::Vector3d x(0.01, -0.02, 0.3);
