@@ -13,6 +13,7 @@
 
 #include "app/command_registry.h"
 #include "drivers/generator/safe_state.h"
+#include "sessions/report/build_info.h"
 
 namespace msmcal::app {
 namespace {
@@ -77,6 +78,11 @@ void CheckNumbers(const CLI::App& app) {
 int main(int argc, char** argv) {
   CLI::App app{"msmcal: calibration rig and solver for soft-hinged micro scanning mirrors"};
   app.require_subcommand(1);
+  // What a bug report or a lab notebook should quote: the same version and commit as a report's
+  // provenance.
+  app.set_version_flag("--version", std::string("msmcal ") + msmcal::report::MsmcalVersion() +
+                                        " (commit " + msmcal::report::GitCommit() + ", " +
+                                        msmcal::report::BuildType() + " build)");
   std::string log_level = "info";
   app.add_option("--log-level", log_level, "trace|debug|info|warn|error")
       ->check(CLI::IsMember({"trace", "debug", "info", "warn", "error"}));
