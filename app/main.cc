@@ -3,6 +3,7 @@
 
 #include <CLI/CLI.hpp>
 #include <algorithm>
+#include <cerrno>
 #include <cmath>
 #include <cstdlib>
 #include <exception>
@@ -46,28 +47,41 @@ void AddRegisteredCommands(CLI::App& app) {
 }
 
 // One boundary check for every number on the command line, run before any command does anything:
-// CLI11 (2.1) lets "nan" and "inf" through its range checks and reads integers in base 0 ("0100"
-// is 64, "0x10" is 16). A floating-point value must be finite, an integer plain decimal.
+// CLI11 (2.1) lets "nan" and "inf" through its range checks, reads integers in base 0 ("0100" is
+// 64, "0x10" is 16), takes "-1" for an unsigned option as 18446744073709551615 and saturates a
+// 64-bit value out of range. A floating-point value must be finite, an integer plain decimal
+// within its type (no sign for an unsigned one).
 void CheckNumbers(const CLI::App& app) {
-  static const std::regex kDecimal("[+-]?(0|[1-9][0-9]*)");
+  static const std::regex kSigned("[+-]?(0|[1-9][0-9]*)");
+  static const std::regex kUnsigned("[+]?(0|[1-9][0-9]*)");
   for (const CLI::Option* option : app.get_options()) {
     if (option->count() == 0) continue;
-    const std::string type = option->get_type_name();
+    // The value type only: CLI11 appends validators' descriptions after it ("INT:INT in [...]").
+    const std::string full_type = option->get_type_name();
+    const std::string type = full_type.substr(0, full_type.find_first_of(": "));
     const bool floating = type.find("FLOAT") != std::string::npos;
-    const bool integer = type.find("INT") != std::string::npos;
+    const bool is_unsigned = type.find("UINT") != std::string::npos;
+    const bool integer = is_unsigned || type.find("INT") != std::string::npos;
     if (!floating && !integer) continue;
     for (const std::string& value : option->results()) {
+      const auto refuse = [&](const std::string& expected) {
+        throw CLI::ValidationError(option->get_name(), "'" + value + "': expected " + expected);
+      };
       if (floating) {
         char* end = nullptr;
         const double x = std::strtod(value.c_str(), &end);
-        if (end != value.c_str() && *end == '\0' && !std::isfinite(x))
-          throw CLI::ValidationError(option->get_name(),
-                                     "'" + value + "': expected a finite number");
-      } else if (!std::regex_match(value, kDecimal)) {
-        throw CLI::ValidationError(
-            option->get_name(),
-            "'" + value + "': expected a decimal integer (no leading zeros, no 0x)");
+        if (end != value.c_str() && *end == '\0' && !std::isfinite(x)) refuse("a finite number");
+        continue;
       }
+      if (!std::regex_match(value, is_unsigned ? kUnsigned : kSigned))
+        refuse(is_unsigned ? "a decimal integer >= 0 (no sign, no leading zeros, no 0x)"
+                           : "a decimal integer (no leading zeros, no 0x)");
+      errno = 0;
+      if (is_unsigned)
+        (void)std::strtoull(value.c_str(), nullptr, 10);
+      else
+        (void)std::strtoll(value.c_str(), nullptr, 10);
+      if (errno == ERANGE) refuse("an integer within 64 bits");
     }
   }
   for (const CLI::App* sub : app.get_subcommands()) CheckNumbers(*sub);

@@ -205,7 +205,7 @@ MockGvCamera::~MockGvCamera() {
   if (impl_) {
     // A server held by the lost fault sends nothing more: its pending frame's packets are all
     // dropped ("gvsp-lost-ratio" 1) before its fill callback is released.
-    if (options_.lost_after_frames >= 0 && impl_->server != nullptr)
+    if (lost_.load() && impl_->server != nullptr)
       g_object_set(impl_->server, "gvsp-lost-ratio", 1.0, nullptr);
     {
       std::lock_guard lock(impl_->mu);

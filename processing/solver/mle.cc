@@ -342,7 +342,8 @@ Rigid3d TransformFromChart(const Rigid3d& reference, const Eigen::Matrix<double,
 }
 
 double DirectionSigmaRad(const Eigen::Matrix2d& cov) {
-  return std::sqrt(std::max(0.0, cov.trace()));
+  const double t = cov.trace();
+  return t < 0 ? 0.0 : std::sqrt(t);  // NaN stays NaN: never reported as certainty
 }
 
 double MleResult::BeamDirectionSigmaRad(int b) const {

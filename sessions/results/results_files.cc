@@ -362,6 +362,7 @@ MirrorPosesSummary SummariseSolve(const solver::SolveOutput& out, double solve_t
   s.rms_sigma_beta_deg = std::sqrt(sb / n);
   s.rms_sigma_trans_mm = std::sqrt(st / n);
   if (out.mle.usable) {
+    // The beams the covariance holds, in order (NaN: not held, or not a number).
     for (size_t b = 0; b < out.beams.size(); ++b) {
       const double sigma = out.mle.BeamDirectionSigmaRad(static_cast<int>(b));
       if (!std::isfinite(sigma)) break;
@@ -372,9 +373,10 @@ MirrorPosesSummary SummariseSolve(const solver::SolveOutput& out, double solve_t
       const double sigma = solver::DirectionSigmaRad(c.topLeftCorner<2, 2>());
       sn += sigma * sigma;
     }
-    if (!out.mle.plane_cov.empty())
-      s.rms_sigma_normal_world_deg =
-          std::sqrt(sn / static_cast<double>(out.mle.plane_cov.size())) * common::kDegPerRad;
+    const double normal_sigma =
+        std::sqrt(sn / static_cast<double>(out.mle.plane_cov.size())) * common::kDegPerRad;
+    if (!out.mle.plane_cov.empty() && std::isfinite(normal_sigma))  // else -1: not known
+      s.rms_sigma_normal_world_deg = normal_sigma;
   }
   s.dropped_frames = out.dropped;
   s.notes = out.notes;

@@ -61,6 +61,12 @@ refuse grab_count_octal "--count: '010': expected a decimal integer" \
 refuse hall_rate_hex "--rate: '0x10': expected a decimal integer" \
   hall record --device /dev/msmcal-no-such-mcu --seconds 1 --out "$dir/d.csv" --rate 0x10
 test ! -e "$dir/new4" && test ! -e "$dir/d.csv"
+# An unsigned option takes no sign (CLI11 alone reads -1 as 18446744073709551615), and no value
+# beyond 64 bits (it would saturate).
+refuse solve_seed_negative "--seed: '-1': expected a decimal integer >= 0" \
+  solve "$dir/none" --seed -1
+refuse solve_seed_overflow "--seed: '99999999999999999999': expected an integer within 64 bits" \
+  solve "$dir/none" --seed 99999999999999999999
 # --ui-bind alone would be ignored (the live view only runs with --ui).
 refuse ui_bind_alone "--ui-bind requires --ui" demo --ui-bind 0.0.0.0 --out "$dir/demo"
 test ! -e "$dir/demo"
