@@ -20,7 +20,8 @@ frames' stretches (at least 10 periods here) are left out. Its delta_t is printe
 truth, not asserted: with this variant's 26 poses and 1 s background the fit lands on an alias
 near dt +- 1/(2 f_fast) (docs/hall-calibration.md, "What limits dt"; the unit test
 HallModel.RecoversTheDelayFromASessionWithNeutralAndFastOnlyStretches asserts dt).
-The journal (session.db) keeps --hook-timeout for `msmcal resume`.
+The journal (session.db) keeps --hook-timeout, and `msmcal resume` reads it back (a spoiled
+value in a copy of the journal is refused naming it).
 Runs in its own network namespace (ports 15025/15026, GigE Vision 3956).
 
 usage: twin_session_hook_test.py MSMCAL SOURCE_DIR
@@ -113,6 +114,23 @@ def main():
     if not row or "hook_timeout_ms: 900000" not in row[0]:
         fail("the journal's configuration has no hook_timeout_ms: 900000:\n%s" %
              (row[0][:800] if row else None))
+    # ... and `msmcal resume` reads it back: a copy of the journal, made incomplete, with the
+    # value spoiled, is refused naming it before anything is contacted.
+    spoiled = os.path.join(tmp, "spoiled")
+    os.mkdir(spoiled)
+    db = sqlite3.connect(os.path.join(spoiled, "session.db"))
+    src = sqlite3.connect("file:%s?mode=ro" % os.path.join(out, "session.db"), uri=True)
+    src.backup(db)
+    src.close()
+    db.execute("UPDATE config SET yaml = replace(yaml, 'hook_timeout_ms: 900000', "
+               "'hook_timeout_ms: 0') WHERE id = 1")
+    db.execute("DELETE FROM steps WHERE name = 'session_written'")
+    db.commit()
+    db.close()
+    r = subprocess.run([msmcal, "resume", spoiled], capture_output=True, text=True, timeout=120)
+    if r.returncode == 0 or "hook_timeout_ms = 0: expected 1..86400000" not in r.stdout + r.stderr:
+        fail("resume of a journal with hook_timeout_ms: 0: exit %d\n%s" %
+             (r.returncode, (r.stdout + r.stderr)[-2000:]))
     m = re.search(r"session written: (\d+)/(\d+) step-1 and (\d+)/(\d+) step-2", log)
     # At most one step 1 frame may be rejected by the quality gate: on a loaded 2-core machine
     # a twin frame has now and then missed a laser dot (seen twice in session 8, cause not
