@@ -17,6 +17,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <memory>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -41,7 +42,7 @@ namespace fs = std::filesystem;
 struct DemoArgs {
   std::string out = "msmcal-demo";
   std::string config;
-  int64_t seed = -1;
+  std::optional<uint64_t> seed;  // none: the config's
   std::string camera_address = "127.0.0.1";
   std::string store;  // session store folder to import the finished session into (optional)
   bool guided = false;
@@ -60,7 +61,7 @@ void RunDemo(const DemoArgs& args) {
   };
   DemoAcquisitionOptions acq;
   acq.sim = args.config.empty() ? sim::SimOptions{} : sim::LoadSimOptions(args.config);
-  if (args.seed >= 0) acq.sim.seed = static_cast<uint64_t>(args.seed);
+  if (args.seed) acq.sim.seed = *args.seed;
   acq.camera_address = args.camera_address;
   if (args.generator_ports.size() == 2) {
     acq.external_generator_port1 = args.generator_ports[0];
@@ -142,8 +143,7 @@ void AddDemoCommands(CLI::App& app) {
   auto* demo = app.add_subcommand(
       "demo", "Run a complete simulated calibration through the real drivers and mock instruments");
   demo->add_option("--out", args->out, "Session folder to create (must be absent or empty)");
-  demo->add_option("--seed", args->seed, "Simulator seed (default: the config's)")
-      ->check(NonNegativeSeed());
+  demo->add_option("--seed", args->seed, "Simulator seed (default: the config's)");
   demo->add_option("--config", args->config, "Simulator configuration (config/sim.yaml keys)");
   demo->add_option("--camera-address", args->camera_address,
                    "Address the mock GigE Vision camera serves on (port 3956)");

@@ -17,6 +17,7 @@
 #include <iostream>
 #include <iterator>
 #include <memory>
+#include <optional>
 #include <stdexcept>
 #include <string>
 
@@ -38,7 +39,7 @@ struct RigArgs {
   std::string rig;
   std::string hands;
   std::string world;
-  int64_t seed = -1;
+  std::optional<uint64_t> seed;  // none: the world's
   double exposure_s = 0.5;
   std::string hall_link;
 };
@@ -54,7 +55,7 @@ void ServeRig(const RigArgs& args) {
   const msmcal::sim::SimOptions world =
       args.world.empty() ? msmcal::sim::SimOptions{} : msmcal::sim::LoadSimOptions(args.world);
   twin::PhysicalTwinOptions o = twin::TwinOptionsFromRigFile(args.rig, world);
-  if (args.seed >= 0) o.sim.seed = static_cast<uint64_t>(args.seed);
+  if (args.seed) o.sim.seed = *args.seed;
   o.hands_socket = args.hands;
   o.exposure_s = args.exposure_s;
   if (!args.hall_link.empty()) o.hall_link_path = args.hall_link;
@@ -116,8 +117,7 @@ void AddMockRigCommands(CLI::App& app) {
   rig->add_option("--world", rig_args->world,
                   "The world's simulation config (default: built-in = config/sim.yaml)")
       ->check(CLI::ExistingFile);
-  rig->add_option("--seed", rig_args->seed, "Override the world's seed")
-      ->check(msmcal::app::NonNegativeSeed());
+  rig->add_option("--seed", rig_args->seed, "Override the world's seed");
   rig->add_option("--exposure", rig_args->exposure_s,
                   "Camera integration window per frame, s (>= one pattern period shows every "
                   "pulse)");

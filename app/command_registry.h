@@ -22,17 +22,6 @@ CLI::App* GetOrAddSubcommand(CLI::App& parent, const std::string& name,
 // Adds every registered family to `app`, in `order`.
 void AddRegisteredCommands(CLI::App& app);
 
-// For a signed --seed whose default (-1) means "the configuration's": refuses a negative value
-// given on the command line ("--seed: -3: expected a seed >= 0"), instead of
-// CLI::NonNegativeNumber's range up to 1.8e308 written out in full.
-inline CLI::Validator NonNegativeSeed() {
-  return CLI::Validator(
-      [](std::string& value) -> std::string {
-        return !value.empty() && value.front() == '-' ? value + ": expected a seed >= 0" : "";
-      },
-      "");
-}
-
 }  // namespace msmcal::app
 
 #define MSMCAL_REGISTER_COMMANDS(order, fn) \

@@ -46,6 +46,8 @@ void AddRegisteredCommands(CLI::App& app) {
   for (auto& [order, registrar] : registry) registrar(app);
 }
 
+namespace {
+
 // One boundary check for every number on the command line, run before any command does anything:
 // CLI11 (2.1) lets "nan" and "inf" through its range checks, reads integers in base 0 ("0100" is
 // 64, "0x10" is 16), takes "-1" for an unsigned option as 18446744073709551615 and saturates a
@@ -86,6 +88,8 @@ void CheckNumbers(const CLI::App& app) {
   }
   for (const CLI::App* sub : app.get_subcommands()) CheckNumbers(*sub);
 }
+
+}  // namespace
 
 }  // namespace msmcal::app
 

@@ -348,7 +348,7 @@ double DirectionSigmaRad(const Eigen::Matrix2d& cov) {
 
 double MleResult::BeamDirectionSigmaRad(int b) const {
   const int o = OffsetBeam(b);
-  if (b < 0 || o + 2 > other_cov.rows() || o + 2 > other_cov.cols())
+  if (b < 0 || o + 2 > other_cov.rows())  // square
     return std::numeric_limits<double>::quiet_NaN();
   return DirectionSigmaRad(other_cov.block<2, 2>(o, o));
 }

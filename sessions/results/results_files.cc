@@ -373,10 +373,10 @@ MirrorPosesSummary SummariseSolve(const solver::SolveOutput& out, double solve_t
       const double sigma = solver::DirectionSigmaRad(c.topLeftCorner<2, 2>());
       sn += sigma * sigma;
     }
-    const double normal_sigma =
-        std::sqrt(sn / static_cast<double>(out.mle.plane_cov.size())) * common::kDegPerRad;
-    if (!out.mle.plane_cov.empty() && std::isfinite(normal_sigma))  // else -1: not known
-      s.rms_sigma_normal_world_deg = normal_sigma;
+    if (!out.mle.plane_cov.empty()) {
+      const double rms = std::sqrt(sn / static_cast<double>(out.mle.plane_cov.size()));
+      if (std::isfinite(rms)) s.rms_sigma_normal_world_deg = rms * common::kDegPerRad;  // else -1
+    }
   }
   s.dropped_frames = out.dropped;
   s.notes = out.notes;

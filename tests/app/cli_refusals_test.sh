@@ -75,7 +75,7 @@ test ! -e "$dir/demo"
 mkdir "$dir/store"
 refuse demo_store_exists "--store: $dir/store already exists" \
   demo --store "$dir/store" --out "$dir/demo"
-refuse demo_seed_negative "--seed: -3: expected a seed >= 0" demo --seed -3 --out "$dir/demo"
+refuse demo_seed_negative "--seed: '-3': expected a decimal integer >= 0" demo --seed -3 --out "$dir/demo"
 test ! -e "$dir/demo"
 # mock camera: a sensor size with a simulated scene would be ignored (the simulator's camera sets
 # it); refused before the simulator configuration is even read.
