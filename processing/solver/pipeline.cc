@@ -54,14 +54,15 @@ std::string PipelineOptions::Validate() const {
 // values and returns one, with the frames it dropped and what it noted (StageLog); a stage
 // that cannot go on ends the solve with SolveError, carrying everything decided so far.
 SolveOutput SolveRecording(const dataset::Recording& input, const ImageLoader& input_load,
-                           const PipelineOptions& o) {
-  if (const std::string e = o.Validate(); !e.empty()) throw SolveError("PipelineOptions: " + e);
+                           const PipelineOptions& options) {
+  if (const std::string e = options.Validate(); !e.empty())
+    throw SolveError("PipelineOptions: " + e);
   if (const std::string e = input.camera.Validate(); !e.empty())
     throw SolveError("camera.yaml: " + e);
   SolveOutput out;
   // Repeated exposures of a scene become one averaged frame (stages/exposures.h).
   const ExposureScenes exposures =
-      o.average_exposures ? CollapseExposures(input) : ExposureScenes{};
+      options.average_exposures ? CollapseExposures(input) : ExposureScenes{};
   if (exposures.Collapsed()) out.notes.push_back(exposures.Note());
   const dataset::Recording& rec = exposures.Collapsed() ? exposures.recording : input;
   const ImageLoader load = [&](const std::string& file) {
@@ -128,9 +129,13 @@ SolveOutput SolveRecording(const dataset::Recording& input, const ImageLoader& i
   const BeamTable beams = MakeBeamTable(rec.beams);
 
   // Boards and laser dots of every image (stages/measure.h).
-  RecordingMeasurement measured = MeasureRecording(rec, load, o);
+  RecordingMeasurement measured = MeasureRecording(rec, load, options);
   det = std::move(measured.detections);
   absorb(std::move(measured.log));
+  // The later stages look for dots where the measurement found them (dot_margin_from_data).
+  PipelineOptions o = options;
+  o.step1_dot_margin_squares = measured.step1_dot_margin_squares;
+  o.step2_dot_margin_squares = measured.step2_dot_margin_squares;
 
   // ---------------- Step 1: sliding boards, beams (Sec. V-A1) ----------------
   // The sliding plate's poses and its dots in {W}, then the dots' beams and the beams (eq. 2).

@@ -50,6 +50,11 @@ struct PipelineOptions {
   // step 2: the world plane, a screen around the world board).
   double step1_dot_margin_squares = 3.0;
   double step2_dot_margin_squares = 8.0;
+  // Where a plate or screen is larger than those margins assume (the spots land beside the
+  // pattern), the data say so: a step whose frames show their listed dots more often on the
+  // board's whole plane than within the margin takes the whole plane (minus the other board)
+  // for every frame of that step, with a note. Decided once per step after the first pass.
+  bool dot_margin_from_data = true;
   // A laser spot is round in the plane it lands on, or elongated by its incidence (2 at 60 deg):
   // the blob's shape mapped into the board's plane through the board's homography may be at
   // most this elongated (the image-space limit is dots.max_elongation, loose: an oblique plate

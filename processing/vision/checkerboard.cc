@@ -605,6 +605,33 @@ BoardHint HintFrom(const CheckerboardDetection& board, cv::Size image_size,
   return hint;
 }
 
+BoardArea::BoardArea(const CheckerboardDetection& board, BoardSize size) : size_(size) {
+  if (board.corners_px.size() != static_cast<size_t>(size.cols * size.rows)) return;
+  const cv::Mat h = BoardHomography(board, size);
+  if (h.empty()) return;
+  const cv::Matx33d board_to_image(h);
+  if (std::abs(cv::determinant(board_to_image)) < 1e-300) return;
+  image_to_board_ = board_to_image.inv();
+  // The board's centre is in front of the camera: its pixel maps back with the sign every
+  // point of the visible plane has.
+  const cv::Vec3d centre =
+      board_to_image * cv::Vec3d(0.5 * (size.cols - 1), 0.5 * (size.rows - 1), 1);
+  if (std::abs(centre[2]) < 1e-300) return;
+  const cv::Vec3d back =
+      image_to_board_ * cv::Vec3d(centre[0] / centre[2], centre[1] / centre[2], 1);
+  front_sign_ = back[2] > 0 ? 1.0 : -1.0;
+  valid_ = std::isfinite(back[2]) && back[2] != 0;
+}
+
+bool BoardArea::Contains(const Eigen::Vector2d& px, double margin) const {
+  if (!valid_ || !px.allFinite()) return false;
+  const cv::Vec3d b = image_to_board_ * cv::Vec3d(px.x(), px.y(), 1);
+  if (!(b[2] * front_sign_ > 0)) return false;  // beyond the plane's horizon
+  const double c = b[0] / b[2], r = b[1] / b[2];
+  const double lo = -1 - margin;
+  return c >= lo && r >= lo && c <= size_.cols + margin && r <= size_.rows + margin;
+}
+
 bool InsideOutline(const std::vector<Eigen::Vector2d>& outline, const Eigen::Vector2d& px) {
   if (outline.size() < 3) return false;
   std::vector<cv::Point2f> poly;

@@ -181,6 +181,23 @@ std::vector<Eigen::Vector2d> SquaresOutline(const CheckerboardDetection& board, 
                                             double margin_squares = 0.0);
 bool InsideOutline(const std::vector<Eigen::Vector2d>& outline, const Eigen::Vector2d& px);
 
+// The board's plane as the image shows it: whether a pixel lies within the squares area grown
+// by `margin_squares` (any margin, infinity included: the whole plane short of its horizon).
+// Mapped back through the homography of the detected corners, so a margin far larger than the
+// board stays exact where an outline's corners would fall behind the camera. Contains nothing
+// where the homography cannot be fitted.
+class BoardArea {
+ public:
+  BoardArea(const CheckerboardDetection& board, BoardSize size);
+  bool Contains(const Eigen::Vector2d& px, double margin_squares) const;
+
+ private:
+  BoardSize size_;
+  bool valid_ = false;
+  cv::Matx33d image_to_board_;
+  double front_sign_ = 1.0;  // sign of the mapped w on the board's side of the horizon
+};
+
 // Single-channel float levels of an image in 8-bit units (BGR -> gray without rounding, 16-bit
 // scaled by 1/257); where `mask` (optional) is zero, 128.
 cv::Mat ToGray32F(const cv::Mat& image, const cv::Mat& mask = cv::Mat());

@@ -92,6 +92,8 @@ std::vector<Knob> Knobs(solver::PipelineOptions& o) {
        "step 1 dots: on the sliding plate within this many squares of its pattern"},
       {"step2_dot_margin_squares", &o.step2_dot_margin_squares,
        "step 2 dots: on the world plane within this many squares of its pattern"},
+      {"dot_margin_from_data", &o.dot_margin_from_data,
+       "a step whose listed dots lie beyond its margin in more frames takes the whole plane"},
       {"max_surface_elongation", &o.max_surface_elongation,
        "largest elongation of a spot in the board's own plane"},
       {"junction_elongation", &o.junction_elongation,

@@ -7,6 +7,7 @@
 #include <cmath>
 #include <exception>
 #include <functional>
+#include <limits>
 #include <map>
 #include <opencv2/core/utility.hpp>
 #include <optional>
@@ -485,17 +486,15 @@ std::vector<vision::Dot> DotsOnBoard(const std::vector<vision::Dot>& dots,
                                      const PipelineOptions& o,
                                      const std::vector<Eigen::Vector2d>& exclude,
                                      RegionRejections* rej) {
-  const auto outline = vision::SquaresOutline(board, size, margin_squares);
-  // The host board's own printed area wins over the other board's outline (the sliding plate
-  // may hide part of the world board in the image).
-  const auto own_area = vision::SquaresOutline(board, size, 0.5);
+  const vision::BoardArea area(board, size);
   const cv::Matx33d h = BoardHomographyOrIdentity(board, size);
   const double junction_px = o.junction_exclusion_squares * board.square_px;
   std::vector<vision::Dot> out;
   for (const auto& d : dots) {
-    if (!vision::InsideOutline(outline, d.px) ||
-        (!exclude.empty() && vision::InsideOutline(exclude, d.px) &&
-         !vision::InsideOutline(own_area, d.px))) {
+    // The host board's own printed area wins over the other board's outline (the sliding plate
+    // may hide part of the world board in the image).
+    if (!area.Contains(d.px, margin_squares) ||
+        (!exclude.empty() && vision::InsideOutline(exclude, d.px) && !area.Contains(d.px, 0.5))) {
       ++rej->off_plane;
       continue;
     }
@@ -649,10 +648,54 @@ ImageMeasurement MeasureFrame(const cv::Mat& img, const std::vector<vision::Boar
   return m;
 }
 
+PipelineOptions ResolveDotMargins(const std::vector<std::vector<vision::BoardSize>>& sizes,
+                                  const std::vector<int>& expected, const PipelineOptions& o,
+                                  std::vector<ImageMeasurement>* measured,
+                                  std::vector<std::string>* notes) {
+  PipelineOptions out = o;
+  if (!o.dot_margin_from_data) return out;
+  constexpr double kWholePlane = std::numeric_limits<double>::infinity();
+  PipelineOptions whole = o;
+  whole.step1_dot_margin_squares = whole.step2_dot_margin_squares = kWholePlane;
+  for (const size_t boards : {size_t{2}, size_t{1}}) {
+    const bool step1 = boards == 2;
+    std::vector<size_t> frames;
+    for (size_t i = 0; i < measured->size(); ++i) {
+      const ImageMeasurement& m = (*measured)[i];
+      if (sizes[i].size() == boards && (step1 ? m.boards[1] : m.boards[0])) frames.push_back(i);
+    }
+    int within = 0, on_plane = 0;
+    for (size_t i : frames) {
+      const ImageMeasurement& m = (*measured)[i];
+      RegionRejections r1, r2;
+      const auto want = static_cast<size_t>(std::max(expected[i], 0));
+      within += DotsOnHostPlane(m.dots, m, sizes[i], o, &r1).size() == want;
+      on_plane += DotsOnHostPlane(m.dots, m, sizes[i], whole, &r2).size() == want;
+    }
+    if (on_plane <= within) continue;
+    (step1 ? out.step1_dot_margin_squares : out.step2_dot_margin_squares) = kWholePlane;
+    for (size_t i : frames) {
+      ImageMeasurement& m = (*measured)[i];
+      RegionRejections r;
+      m.dots_on_plane = DotsOnHostPlane(m.dots, m, sizes[i], out, &r).size();
+    }
+    std::ostringstream note;
+    note << (step1 ? "step 1" : "step 2") << ": the listed dots lie beyond "
+         << (step1 ? "step1_dot_margin_squares (" : "step2_dot_margin_squares (")
+         << (step1 ? o.step1_dot_margin_squares : o.step2_dot_margin_squares) << ") of the "
+         << (step1 ? "sliding" : "world") << " board's squares: " << on_plane << " of "
+         << frames.size() << " frames show their dots on the board's whole plane, " << within
+         << " within the margin; the whole plane is taken (dot_margin_from_data)";
+    notes->push_back(note.str());
+  }
+  return out;
+}
+
 RecordingMeasurement MeasureRecording(const dataset::Recording& rec, const ImageLoader& load,
-                                      const PipelineOptions& o) {
+                                      const PipelineOptions& options) {
   using dataset::Step2Kind;
   RecordingMeasurement out;
+  PipelineOptions o = options;
   const vision::BoardSize world_size{rec.world_board.cols, rec.world_board.rows};
   const vision::BoardSize sliding_size{rec.sliding_board.cols, rec.sliding_board.rows};
   // Boards and dots of every image first (parallel over images, OpenCV serial inside).
@@ -707,8 +750,10 @@ RecordingMeasurement MeasureRecording(const dataset::Recording& rec, const Image
         light.push_back(std::move(l));
       }
       BorrowSlidingBoards(
-          std::vector<std::vector<size_t>>(static_groups.begin(), static_groups.end() - 1), asks, o,
-          &measured);
+          std::vector<std::vector<size_t>>(static_groups.begin(), static_groups.end() - 1), asks,
+          options, &measured);
+      // From here on, the margins the data ask for.
+      o = ResolveDotMargins(asks, expected, options, &measured, &out.log.notes);
       std::vector<char> every_view(static_groups.size(), 0);
       every_view.back() = 1;  // step 2
       DropStaticBlobs(static_groups, asks, light, every_view, o, &measured);
@@ -765,6 +810,8 @@ RecordingMeasurement MeasureRecording(const dataset::Recording& rec, const Image
     out.detections.push_back(std::move(d));
   }
   out.images = std::move(measured);
+  out.step1_dot_margin_squares = o.step1_dot_margin_squares;
+  out.step2_dot_margin_squares = o.step2_dot_margin_squares;
   return out;
 }
 

@@ -131,7 +131,21 @@ struct RecordingMeasurement {
   // Notes: how the dots were centred. Error: the measurement could not go on (an image cannot
   // be read, exposures of one scene differ in size); `images` and `detections` are then empty.
   StageLog log;
+  // The dot margins the later stages use: the options', or infinity (the board's whole plane)
+  // for a step whose frames show their dots there more often (dot_margin_from_data).
+  double step1_dot_margin_squares = 0;
+  double step2_dot_margin_squares = 0;
 };
+
+// PipelineOptions::dot_margin_from_data, per step (step 1: images asking for two boards; step
+// 2: one): the configured margin, or the board's whole plane where more of the step's frames
+// (with their host board found) show exactly `expected[i]` dots there than within the margin.
+// Returns the options with the margins taken; recounts dots_on_plane for a step that widened
+// and notes why.
+PipelineOptions ResolveDotMargins(const std::vector<std::vector<vision::BoardSize>>& sizes,
+                                  const std::vector<int>& expected, const PipelineOptions& options,
+                                  std::vector<ImageMeasurement>* measured,
+                                  std::vector<std::string>* notes);
 // Measures every image of `recording` (PipelineOptions::image_threads at a time, OpenCV's own
 // parallel loops off meanwhile). `load` is called from several threads at once.
 RecordingMeasurement MeasureRecording(const dataset::Recording& recording, const ImageLoader& load,
