@@ -9,6 +9,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <map>
 #include <memory>
 #include <mutex>
@@ -245,6 +246,25 @@ void RunExplain(const SolveArgs& args, const solver::PipelineOptions& options) {
       "on the board's plane (margins, roundness in the plane, square corners): %zu of %zu "
       "blobs\n",
       m.dots_on_plane, m.dots.size());
+  if (host && options.dot_margin_from_data) {
+    // The solve widens a step to the whole plane where that shows more of its frames their
+    // dots (stages/measure.h, ResolveDotMargins): the frame's own count there.
+    solver::RegionRejections region;
+    const bool step1 = asks.size() == 2;
+    const size_t whole =
+        solver::DotsOnBoard(
+            m.dots, *host, asks[step1 ? 1 : 0], std::numeric_limits<double>::infinity(), options,
+            step1 && m.boards[0] ? vision::SquaresOutline(*m.boards[0], asks[0], 0.5)
+                                 : std::vector<Eigen::Vector2d>{},
+            &region)
+            .size();
+    std::printf(
+        "on the board's whole plane (beyond %s = %g; the solve takes it for the step where more "
+        "of its frames show their dots there, dot_margin_from_data): %zu of %zu blobs\n",
+        step1 ? "step1_dot_margin_squares" : "step2_dot_margin_squares",
+        step1 ? options.step1_dot_margin_squares : options.step2_dot_margin_squares, whole,
+        m.dots.size());
+  }
   // Shown whenever the frame has a static scene: which frames the solve measures this way
   // depends on the other frames too (stages/measure.cc, DotsOverStaticBackground).
   if (host && options.background_dots && !scene.empty()) {

@@ -6,6 +6,7 @@
 #include <Eigen/Eigenvalues>
 #include <Eigen/Geometry>
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <opencv2/core.hpp>
 #include <random>
@@ -319,6 +320,77 @@ TEST(Step1Stage, AFrameWithoutItsSlidingBoardUsesItsPosesBoard) {
   EXPECT_NE(out.log.dropped[0].reason.find("not found in this or any other frame of pose 2"),
             std::string::npos)
       << out.log.dropped[0].reason;
+}
+
+// dot_margin_from_data: a plate whose spots land six squares beside its pattern (beyond
+// step1_dot_margin_squares = 3) widens step 1 to the sliding board's whole plane; a stray blob
+// far from the pattern in frames whose dots lie within the margin does not; off, nothing widens.
+TEST(MeasureStage, DotsBesideThePatternWidenTheStepToItsBoardsWholePlane) {
+  const vision::BoardSize world{7, 5}, sliding{5, 4};
+  auto board = [](vision::BoardSize size, Eigen::Vector2d origin, double square) {
+    vision::CheckerboardDetection d;
+    for (int r = 0; r < size.rows; ++r)
+      for (int c = 0; c < size.cols; ++c)
+        d.corners_px.push_back(origin + square * Eigen::Vector2d(c + 0.05 * r, r));
+    d.square_px = square;
+    return d;
+  };
+  auto dot = [](Eigen::Vector2d px) {
+    vision::Dot d;
+    d.px = d.centroid_px = px;
+    d.scatter_px2 = 2.0 * Eigen::Matrix2d::Identity();
+    d.cov_px2 = 0.01 * Eigen::Matrix2d::Identity();
+    d.num_pixels = 30;
+    d.fitted = true;
+    return d;
+  };
+  const auto w = board(world, {100, 80}, 20), s = board(sliding, {300, 500}, 20);
+  // Sliding board (c, r) -> pixel: origin + 20 (c + 0.05 r, r).
+  auto on_plate = [](double c, double r) {
+    return Eigen::Vector2d(300, 500) + 20 * Eigen::Vector2d(c + 0.05 * r, r);
+  };
+  const std::vector<std::vector<vision::BoardSize>> sizes(4, {world, sliding});
+  const std::vector<int> expected = {1, 1, 1, 0};
+  auto frames = [&](const std::vector<std::vector<Eigen::Vector2d>>& dots_px) {
+    std::vector<ImageMeasurement> m(dots_px.size());
+    for (size_t i = 0; i < m.size(); ++i) {
+      m[i].boards = {w, s};
+      for (const auto& p : dots_px[i]) m[i].dots.push_back(dot(p));
+      m[i].image_size = cv::Size(1200, 900);
+    }
+    return m;
+  };
+  PipelineOptions o;
+  ASSERT_DOUBLE_EQ(o.step1_dot_margin_squares, 3);
+  {
+    auto m = frames({{on_plate(11, 1)}, {on_plate(11, 2)}, {on_plate(10, 1.5)}, {}});
+    std::vector<std::string> notes;
+    const PipelineOptions got = ResolveDotMargins(sizes, expected, o, &m, &notes);
+    EXPECT_TRUE(std::isinf(got.step1_dot_margin_squares));
+    EXPECT_EQ(got.step2_dot_margin_squares, o.step2_dot_margin_squares);
+    for (size_t i = 0; i < 3; ++i) EXPECT_EQ(m[i].dots_on_plane, 1u) << i;
+    ASSERT_EQ(notes.size(), 1u);
+    EXPECT_NE(notes[0].find("step1_dot_margin_squares (3)"), std::string::npos) << notes[0];
+    EXPECT_NE(notes[0].find("4 of 4 frames"), std::string::npos) << notes[0];
+    // Off: the margin stays, the counts too.
+    PipelineOptions off = o;
+    off.dot_margin_from_data = false;
+    auto m2 = frames({{on_plate(11, 1)}, {on_plate(11, 2)}, {on_plate(10, 1.5)}, {}});
+    notes.clear();
+    EXPECT_EQ(ResolveDotMargins(sizes, expected, off, &m2, &notes).step1_dot_margin_squares, 3);
+    EXPECT_TRUE(notes.empty());
+  }
+  {
+    // Dots on the plate within the margin, a blob far out in every frame (a glint): stays.
+    auto m = frames({{on_plate(2, 1), on_plate(25, 1)},
+                     {on_plate(6, 2), on_plate(25, 1)},
+                     {on_plate(1, 1.5), on_plate(25, 1)},
+                     {on_plate(25, 1)}});
+    std::vector<std::string> notes;
+    const PipelineOptions got = ResolveDotMargins(sizes, expected, o, &m, &notes);
+    EXPECT_EQ(got.step1_dot_margin_squares, 3);
+    EXPECT_TRUE(notes.empty());
+  }
 }
 
 TEST(StageHelpers, BestInjectionLeavesCostlyItemsWithoutASlot) {

@@ -5,6 +5,7 @@
 #include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
@@ -100,6 +101,60 @@ TEST(CheckerboardTest, TwoBoardsOfDifferentSizesInOneImage) {
   const auto outline = SquaresOutline(*found[1], small);
   EXPECT_TRUE(InsideOutline(outline, Apply(hs, 20, 15)));
   EXPECT_FALSE(InsideOutline(outline, Apply(hb, 20, 15)));
+}
+
+// BoardArea maps pixels back through the corners' homography: within a margin it agrees with
+// the outline polygon; a margin far larger than the board (infinity: the whole plane) stays exact
+// where the outline's corners would lie behind the camera, and a pixel beyond the plane's horizon
+// is never on it.
+TEST(CheckerboardTest, BoardAreaCoversItsPlaneUpToTheHorizon) {
+  const BoardSize size{9, 6};
+  // A plane seen obliquely: board (c, r) -> image; its points with r < -40 are behind the camera
+  // (w < 0), r = -40 is its horizon.
+  Eigen::Matrix3d h;
+  h << 20, 3, 400, 0.5, 20 + 0.025 * 100, 300 + 100 * 1, 0, 0.025, 1;
+  auto at = [&](double c, double r) {
+    const Eigen::Vector3d p = h * Eigen::Vector3d(c, r, 1);
+    return Eigen::Vector2d(p.x() / p.z(), p.y() / p.z());
+  };
+  CheckerboardDetection board;
+  for (int r = 0; r < size.rows; ++r)
+    for (int c = 0; c < size.cols; ++c) board.corners_px.push_back(at(c, r));
+  const BoardArea area(board, size);
+  const double inf = std::numeric_limits<double>::infinity();
+  // On the plane, 6 squares beside the pattern: outside a margin of 3, inside one of 8 and the
+  // whole plane.
+  EXPECT_FALSE(area.Contains(at(size.cols + 6, 2), 3));
+  EXPECT_TRUE(area.Contains(at(size.cols + 6, 2), 8));
+  EXPECT_TRUE(area.Contains(at(size.cols + 6, 2), inf));
+  EXPECT_TRUE(area.Contains(at(-200, 300), inf));
+  // Near the horizon (r -> -40 from above) the plane is still there; across it, it is not.
+  EXPECT_TRUE(area.Contains(at(4, -39.5), inf));
+  const Eigen::Vector3d beyond = h * Eigen::Vector3d(4, -41, 1);  // w < 0: behind the camera
+  EXPECT_LT(beyond.z(), 0);
+  EXPECT_FALSE(
+      area.Contains(Eigen::Vector2d(beyond.x() / beyond.z(), beyond.y() / beyond.z()), inf));
+  // Agrees with the outline polygon of the same margin on a grid of pixels.
+  const auto outline = SquaresOutline(board, size, 3);
+  int inside = 0;
+  for (int y = 0; y < 1200; y += 7)
+    for (int x = 0; x < 1600; x += 7) {
+      const Eigen::Vector2d px(x, y);
+      // Pixels within a hair of the polygon's edges may round either way.
+      bool near_edge = false;
+      for (size_t k = 0; k < outline.size(); ++k) {
+        const Eigen::Vector2d a = outline[k], b = outline[(k + 1) % outline.size()];
+        const Eigen::Vector2d d = (b - a).normalized();
+        const Eigen::Vector2d n(-d.y(), d.x());
+        near_edge = near_edge || std::abs(n.dot(px - a)) < 0.01;
+      }
+      if (near_edge) continue;
+      EXPECT_EQ(area.Contains(px, 3), InsideOutline(outline, px)) << x << "," << y;
+      inside += InsideOutline(outline, px);
+    }
+  EXPECT_GT(inside, 100);
+  // No homography, no area.
+  EXPECT_FALSE(BoardArea(CheckerboardDetection{}, size).Contains(at(4, 3), inf));
 }
 
 TEST(CheckerboardTest, MissingBoardIsEmpty) {
