@@ -160,8 +160,16 @@ Step1Frames MeasureStep1Frames(const dataset::Recording& rec,
       corners_clear.push_back(CornersClearOfDots(*measured[i].boards[1], measured[i].dots));
     }
   if (!c1_from_world) {
-    out.log.error = "step1: the world board (" + SizeText(rec.world_board) +
-                    ") was not found in any step 1 image";
+    // The world board's pose comes from the frames kept: say which of the two failed.
+    const auto shown = std::count_if(measured.begin(), measured.begin() + rec.step1.size(),
+                                     [](const ImageMeasurement& m) { return m.boards[0]; });
+    out.log.error = shown == 0
+                        ? "step1: the world board (" + SizeText(rec.world_board) +
+                              ") was not found in any step 1 image"
+                        : "step1: no step 1 frame was kept (the world board (" +
+                              SizeText(rec.world_board) + ") was found in " +
+                              std::to_string(shown) + " of " + std::to_string(rec.step1.size()) +
+                              " frames, each dropped for the reason given)";
     return done();
   }
   out.num_poses = static_cast<int>(pose_remap.size());

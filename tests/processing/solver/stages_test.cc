@@ -12,6 +12,7 @@
 #include <random>
 
 #include "processing/geometry/mirror_frame.h"
+#include "processing/solver/diagnostics.h"
 #include "processing/solver/stages/estimate.h"
 #include "processing/solver/stages/exposures.h"
 #include "processing/solver/stages/measure.h"
@@ -391,6 +392,30 @@ TEST(MeasureStage, DotsBesideThePatternWidenTheStepToItsBoardsWholePlane) {
     EXPECT_EQ(got.step1_dot_margin_squares, 3);
     EXPECT_TRUE(notes.empty());
   }
+}
+
+// The hint names the refusal that explains the missing dots: blobs refused on the board's
+// plane passed every image test, so they win over the image tests' counts (board residue:
+// hundreds of small or elongated blobs); without them, the largest image-level count.
+TEST(DropSummaryTest, HintNamesTheSpotsRefusedOnThePlaneOverBoardResidue) {
+  auto frame = [](int off_plane) {
+    FrameDetection d;
+    d.file = "step1/0001.png";
+    d.step = "step1";
+    d.reason = "found 0 laser dots, expected 3 (one per listed beam)";
+    d.dots_found = 0;
+    d.dots_expected = 3;
+    d.rejected.elongated = 120;
+    d.rejected.too_small = 60;
+    d.off_plane = off_plane;
+    return d;
+  };
+  const DropSummary beside = SummariseDrops({frame(3), frame(3)});
+  EXPECT_EQ(beside.dropped, 2);
+  EXPECT_NE(beside.hint.find("off the board's plane in 2 of 2 frames"), std::string::npos)
+      << beside.hint;
+  const DropSummary residue = SummariseDrops({frame(0), frame(0)});
+  EXPECT_NE(residue.hint.find("dots.max_elongation"), std::string::npos) << residue.hint;
 }
 
 TEST(StageHelpers, BestInjectionLeavesCostlyItemsWithoutASlot) {
