@@ -27,6 +27,7 @@
 #include "sessions/orchestrator/preview.h"
 #include "sessions/orchestrator/reference_steps.h"
 #include "sessions/results/finish_steps.h"
+#include "sessions/rig/rig_file.h"
 #include "sessions/store/session_store.h"
 #include "sessions/store/transfer.h"
 #include "simulation/twin/demo_rig.h"
@@ -240,6 +241,13 @@ orchestrator::SessionResult RunLabAcquisition(const fs::path& out,
   oo.background_seconds = options.background_seconds;
   oo.actual_min_seconds = options.actual_min_seconds;
   oo.run_kind = "lab";
+  {
+    // Where the gate counts the dots: the rig's plate and screen (sliding_plate. and
+    // step2.dot_margin_squares; journalled with the rig's text, so `msmcal resume` has them).
+    const rig::RigFile rf = rig::ParseRigFile(options.rig_yaml, options.rig_origin);
+    oo.gate.step1_margin_squares = rf.sliding_plate.dot_margin_squares;
+    oo.gate.step2_margin_squares = rf.step2.dot_margin_squares;
+  }
   const std::string hook = ParseOperatorSpec(options.operator_spec);
   YAML::Emitter config;
   config << YAML::BeginMap << YAML::Key << "rig_file" << YAML::Value << options.rig_origin
@@ -324,7 +332,7 @@ orchestrator::SessionResult RunLabAcquisition(const fs::path& out,
   co.host_clock_ns = HostClockFor(oo.camera);
   co.poses = options.poses;
   if (options.web) {
-    options.web->Start(options.plan, out);
+    options.web->Start(options.plan, out, oo.gate);
     options.web->Observe(oo);
     live_view::WebOperatorOptions wo;
     wo.mcu_device = co.mcu_device;

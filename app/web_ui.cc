@@ -51,10 +51,12 @@ WebUi::~WebUi() {
   if (shared_->server) shared_->server->Stop();
 }
 
-void WebUi::Start(const dataset::Recording& plan, const std::filesystem::path& session_dir) {
+void WebUi::Start(const dataset::Recording& plan, const std::filesystem::path& session_dir,
+                  const orchestrator::GateOptions& gate) {
   MSMCAL_CHECK(!shared_->View()) << "WebUi::Start called twice";
   live_view::LiveViewOptions vo;
   vo.disk_path = session_dir;
+  vo.gate = gate;
   std::lock_guard<std::mutex> lock(shared_->mu);
   shared_->plan = plan;
   shared_->view = std::make_unique<live_view::LiveView>(shared_->plan, vo);

@@ -31,8 +31,10 @@ class WebUi {
   ~WebUi();
 
   // Creates the view for `plan` (copied) and starts the server; prints the URL on stdout.
-  // Throws std::runtime_error when the port cannot be bound. Called once.
-  void Start(const dataset::Recording& plan, const std::filesystem::path& session_dir);
+  // Throws std::runtime_error when the port cannot be bound. Called once. `gate`: the session's
+  // quality gate (the overlay draws where it counts the dots).
+  void Start(const dataset::Recording& plan, const std::filesystem::path& session_dir,
+             const orchestrator::GateOptions& gate = {});
   // The operator for the session (after Start): a WebOperator in front of `inner` (may be null:
   // the lab, then options carry the MCU device and host clock).
   std::unique_ptr<orchestrator::RigOperator> MakeOperator(live_view::WebOperatorOptions options,

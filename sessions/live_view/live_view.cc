@@ -371,7 +371,7 @@ void LiveView::ProcessLiveFrame(const orchestrator::LiveFrame& f) {
   const orchestrator::PreviewLabels labels = orchestrator::MakePreviewLabels(
       caption, step == 1 ? 1 : 2, plan_.world_board, plan_.sliding_board);
   cv::Mat out = orchestrator::AnnotatePreview(image, g, labels, options_.image_max_width_px);
-  DrawExpectedRegion(out, image.cols, g, step, plan_, options_.gate.outline_margin_squares);
+  DrawExpectedRegion(out, image.cols, g, step, plan_, options_.gate.MarginSquares(step));
   nlohmann::json live;
   live["source"] = "live";
   live["caption"] = caption;
@@ -401,7 +401,7 @@ void LiveView::ProcessDecision(const orchestrator::FrameReport& r) {
         *r.image, g,
         orchestrator::MakePreviewLabels(r.file, r.step, plan_.world_board, plan_.sliding_board),
         options_.image_max_width_px);
-    DrawExpectedRegion(out, r.image->cols, g, r.step, plan_, options_.gate.outline_margin_squares);
+    DrawExpectedRegion(out, r.image->cols, g, r.step, plan_, options_.gate.MarginSquares(r.step));
     jpeg = EncodeJpeg(out, options_.jpeg_quality);
   }
   {

@@ -10,9 +10,12 @@ std::string GateOptions::Validate() const {
            std::to_string(max_saturated_pixel_fraction) + ": must be in [0, 1]";
   if (max_extra_dots < 0)
     return "GateOptions.max_extra_dots = " + std::to_string(max_extra_dots) + ": must be >= 0";
-  if (!(outline_margin_squares >= 0))
-    return "GateOptions.outline_margin_squares = " + std::to_string(outline_margin_squares) +
-           ": must be >= 0";
+  if (!(step1_margin_squares >= 0 && step1_margin_squares <= 1000))
+    return "GateOptions.step1_margin_squares = " + std::to_string(step1_margin_squares) +
+           ": must be in [0, 1000]";
+  if (!(step2_margin_squares >= 0 && step2_margin_squares <= 1000))
+    return "GateOptions.step2_margin_squares = " + std::to_string(step2_margin_squares) +
+           ": must be in [0, 1000]";
   if (std::string e = dots.Validate(); !e.empty()) return "GateOptions.dots: " + e;
   if (std::string e = boards.Validate(); !e.empty()) return "GateOptions.boards: " + e;
   return {};
@@ -74,13 +77,13 @@ GateResult CheckFrame(const cv::Mat& image, int step, int dots_expected,
   // Only dots inside the visible area of the plane the beams hit count: a blob elsewhere (board
   // residue on the other board, a reflection in the scene) neither makes nor spoils a frame,
   // and a beam that missed the plane leaves its count short.
-  const auto outline = vision::SquaresOutline(*found[0], step == 1 ? sliding : world,
-                                              options.outline_margin_squares);
+  const vision::BoardArea area(*found[0], step == 1 ? sliding : world);
+  const double margin = options.MarginSquares(step);
   const char* plane = step == 1 ? "sliding" : "world";
   int outside = 0;
   const vision::Dot* first_outside = nullptr;
   for (const auto& d : r.dots) {
-    if (vision::InsideOutline(outline, d.px)) {
+    if (area.Contains(d.px, margin)) {
       ++r.dots_found;
     } else if (++outside == 1) {
       first_outside = &d;

@@ -29,9 +29,15 @@ struct GateOptions {
   vision::CheckerboardOptions boards;
   // Largest fraction of all pixels at full scale (sensor saturation beyond use).
   double max_saturated_pixel_fraction = 0.01;
-  // Dots must lie inside the board's squares outline grown by this many squares (the board
-  // plane's visible printed area).
-  double outline_margin_squares = 1.0;
+  // Dots must lie inside the board's squares area grown by this many squares (the board plane's
+  // visible printed area): step 1 around the sliding board (a plate that carries the spots
+  // beside its pattern needs more: the rig file's sliding_plate.dot_margin_squares), step 2
+  // around the world board (step2.dot_margin_squares).
+  double step1_margin_squares = 1.0;
+  double step2_margin_squares = 1.0;
+  double MarginSquares(int step) const {
+    return step == 1 ? step1_margin_squares : step2_margin_squares;
+  }
   // Detections allowed beyond the expected dots: the dot detector may report small board-corner
   // residue near a board edge (the solver's association ignores it). Fewer dots than expected
   // always reject.

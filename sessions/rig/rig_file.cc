@@ -253,13 +253,16 @@ RigFile ParseRigFile(const std::string& yaml_text, const std::string& origin) {
 
   const std::string pf = "sliding_plate";
   const YAML::Node plate =
-      r.Map(root, "sliding_plate", pf, {"poses", "nearest_mm", "farthest_mm", "tilt_deg"});
+      r.Map(root, "sliding_plate", pf,
+            {"poses", "nearest_mm", "farthest_mm", "tilt_deg", "dot_margin_squares"});
   SlidingPlate& p = rf.sliding_plate;
   p.poses = r.Int(plate, "poses", pf + ".poses", std::nullopt, 2, 50);
   p.nearest_mm = r.Number(plate, "nearest_mm", pf + ".nearest_mm", std::nullopt, 0, 2000, true);
   p.farthest_mm =
       r.Number(plate, "farthest_mm", pf + ".farthest_mm", std::nullopt, p.nearest_mm, 2000, true);
   p.tilt_deg = r.Number(plate, "tilt_deg", pf + ".tilt_deg", 0.0, 0, 60);
+  p.dot_margin_squares = r.Number(plate, "dot_margin_squares", pf + ".dot_margin_squares",
+                                  p.dot_margin_squares, 0, 100);
 
   const YAML::Node s1 =
       r.Map(root, "step1", "step1", {"exposures", "identification_frames", "background_frames"},
@@ -274,7 +277,7 @@ RigFile ParseRigFile(const std::string& yaml_text, const std::string& origin) {
   const YAML::Node s2 = r.Map(root, "step2", "step2",
                               {"neutral_frames", "fast_only_frames", "fast_only_triggers_per_frame",
                                "scan_triggers_per_frame", "frame_min_separation", "exposures",
-                               "hall_background_s", "hall_actual_min_s"},
+                               "hall_background_s", "hall_actual_min_s", "dot_margin_squares"},
                               /*optional=*/true);
   Step2Design& d2 = rf.step2;
   d2.neutral_frames = r.Int(s2, "neutral_frames", "step2.neutral_frames", d2.neutral_frames, 0, 50);
@@ -293,6 +296,8 @@ RigFile ParseRigFile(const std::string& yaml_text, const std::string& origin) {
                                   d2.hall_background_s, 0, 3600, true);
   d2.hall_actual_min_s =
       r.Number(s2, "hall_actual_min_s", "step2.hall_actual_min_s", d2.hall_actual_min_s, 0, 3600);
+  d2.dot_margin_squares =
+      r.Number(s2, "dot_margin_squares", "step2.dot_margin_squares", d2.dot_margin_squares, 0, 100);
   return rf;
 }
 

@@ -56,6 +56,9 @@ struct SlidingPlate {
   double nearest_mm = 35;
   double farthest_mm = 100;
   double tilt_deg = 12;  // [0, 60]
+  // How far beside its printed pattern the plate may carry the spots, in squares ([0, 100]): the
+  // quality gate counts a step 1 frame's dots within the pattern grown by this.
+  double dot_margin_squares = 1.0;
   double DistanceMm(int pose) const;
   double TiltDeg(int pose) const;
 };
@@ -78,6 +81,9 @@ struct Step2Design {
   int exposures = 1;                // each step 2 frame taken this many times, 1 .. 20
   double hall_background_s = 12.0;  // background Hall recording (MCU time), (0, 3600]
   double hall_actual_min_s = 15.0;  // the actual recording runs through step 2; at least this
+  // How far beside the world board the screen may carry the reflected spots, in squares
+  // ([0, 100]): the quality gate counts a step 2 frame's dots within the board grown by this.
+  double dot_margin_squares = 1.0;
 };
 
 struct RigFile {

@@ -102,6 +102,15 @@ TEST(QualityGate, AcceptsRenderedFramesAndSaysWhyItRejects) {
                                " (1 more outside it, the first at ("),
             std::string::npos)
       << missed.reason;
+  // A plate that carries its spots beside its pattern: with the rig's margin wide enough
+  // (sliding_plate.dot_margin_squares), the same blob counts on the plate.
+  GateOptions wide = gate;
+  wide.step1_margin_squares = 1000;
+  const GateResult beside = CheckFrame(stray, 1, n + 1, plan.world_board, plan.sliding_board, wide);
+  EXPECT_TRUE(beside.accepted) << beside.reason;
+  EXPECT_EQ(beside.dots_found, n + 1);
+  wide.step1_margin_squares = 1001;
+  EXPECT_NE(wide.Validate().find("GateOptions.step1_margin_squares = 1001"), std::string::npos);
 
   cv::Mat saturated = s1.clone();
   saturated(cv::Rect(0, 0, saturated.cols / 2, saturated.rows / 4)).setTo(255);

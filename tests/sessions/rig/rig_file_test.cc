@@ -150,6 +150,20 @@ TEST(RigFileTest, RefusalsNameFieldValueAndLimit) {
             "rig.yaml:" + std::to_string(LineOf(t, "step2:\n")) +
                 ": step3: unknown section (a rig file has generators, camera, hall_mcu, boards, "
                 "beams, sliding_plate, step1, step2)");
+  EXPECT_EQ(ErrorOf(Replace(t, "  dot_margin_squares: 1 ", "  dot_margin_squares: 101 ")),
+            "rig.yaml:" + std::to_string(LineOf(t, "  dot_margin_squares: 1 ")) +
+                ": sliding_plate.dot_margin_squares = 101: must be in [0, 100]");
+  EXPECT_DOUBLE_EQ(
+      ParseRigFile(Replace(t, "  dot_margin_squares: 1 ", "  dot_margin_squares: 6.5 "), "rig.yaml")
+          .sliding_plate.dot_margin_squares,
+      6.5);
+  {
+    // Both keys are optional; the gate's default margin is then 1 square.
+    const RigFile r = ParseRigFile(
+        std::regex_replace(t, std::regex("\n  dot_margin_squares: 1 [^\n]*"), ""), "rig.yaml");
+    EXPECT_DOUBLE_EQ(r.sliding_plate.dot_margin_squares, 1);
+    EXPECT_DOUBLE_EQ(r.step2.dot_margin_squares, 1);
+  }
   EXPECT_EQ(ErrorOf(Replace(t, "  tilt_deg: 12", "  tilt: 12")),
             "rig.yaml:" + std::to_string(LineOf(t, "  tilt_deg: 12")) +
                 ": sliding_plate.tilt: unknown key");
