@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <numeric>
 #include <random>
 #include <sstream>
@@ -206,6 +207,26 @@ DeltaTEstimate JudgeSessionDeltaT(const HallCalibrationResult& r,
 
 }  // namespace
 
+bool CrossCheckWithDrivePhases(const DrivePhaseEstimate& phases,
+                               const DeltaTIdentificationOptions& o, DeltaTEstimate* dt) {
+  if (!dt->identified() || dt->method != DeltaTMethod::kFieldModel || !phases.determined)
+    return false;
+  const double gap = std::abs(dt->delta_t_s - phases.delta_t_s);
+  const double sigma = std::hypot(dt->sigma_s, phases.sigma_s);
+  if (!(gap > o.max_phase_disagreement_sigmas * sigma)) return false;
+  char buf[400];
+  std::snprintf(buf, sizeof buf,
+                "the %s model puts dt at %s +- %s, the drives' phases at %s +- %s: %.1f combined "
+                "sigmas apart (at most %g), so one of them is biased (a field model that does not "
+                "fit the recording with this few poses); more scan poses decide",
+                ToString(dt->model), FormatMs(dt->delta_t_s).c_str(), FormatMs(dt->sigma_s).c_str(),
+                FormatMs(phases.delta_t_s).c_str(), FormatMs(phases.sigma_s).c_str(), gap / sigma,
+                o.max_phase_disagreement_sigmas);
+  dt->status = DeltaTStatus::kImprecise;
+  dt->reason = buf;
+  return true;
+}
+
 HallCalibrationResult CalibrateHall(const HallCalibrationInput& in,
                                     const HallCalibrationOptions& o) {
   if (const std::string e = o.Validate(); !e.empty())
@@ -409,9 +430,10 @@ HallCalibrationResult CalibrateHall(const HallCalibrationInput& in,
   r.final_fit = FitHallModel(r.best, in.poses, f_all, bracketed);
   r.delta_t = JudgeSessionDeltaT(r, first_pass, in, fit, bracketed, f_all, bracketed_pass, scale,
                                  o.delta_t);
-  // A field model that cannot tell the fast drive's valleys apart (few poses, a misfit) leaves
-  // dt to the drives' phases when they determine it.
-  if (!r.delta_t.identified() && r.drive_phase.determined) {
+  const bool contradicted = CrossCheckWithDrivePhases(r.drive_phase, o.delta_t, &r.delta_t);
+  if (!contradicted && !r.delta_t.identified() && r.drive_phase.determined) {
+    // A field model that cannot tell the fast drive's valleys apart (few poses, a misfit)
+    // leaves dt to the drives' phases when they determine it.
     r.delta_t.field_status = r.delta_t.status;
     r.delta_t.field_reason = r.delta_t.reason;
     r.delta_t.status = DeltaTStatus::kIdentified;

@@ -18,6 +18,8 @@ std::string DeltaTIdentificationOptions::Validate() const {
     s << "min_separation must be >= 0, got " << min_separation;
   else if (!(max_sigma_s > 0))
     s << "max_sigma_s must be > 0, got " << max_sigma_s;
+  else if (!(max_phase_disagreement_sigmas > 0))
+    s << "max_phase_disagreement_sigmas must be > 0, got " << max_phase_disagreement_sigmas;
   return s.str();
 }
 

@@ -47,6 +47,10 @@ struct DeltaTIdentificationOptions {
   double min_split_agreement = 0.9;  // fraction of the splits in the minimum's valley
   double min_separation = 25;        // residual variances between the minimum and any other
   double max_sigma_s = 25e-6;        // the splits\' spread in the minimum\'s valley
+  // A field model's dt and a determined drive-phase dt (an estimate that does not depend on
+  // the field's shape) further apart than this many combined sigmas: one of them is biased (a
+  // field model that does not fit the recording, with few poses), and dt is not identified.
+  double max_phase_disagreement_sigmas = 5;
   std::string Validate() const;
 };
 

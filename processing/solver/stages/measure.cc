@@ -702,6 +702,8 @@ RecordingMeasurement MeasureRecording(const dataset::Recording& rec, const Image
   using dataset::Step2Kind;
   RecordingMeasurement out;
   PipelineOptions o = options;
+  out.step1_dot_margin_squares = o.step1_dot_margin_squares;
+  out.step2_dot_margin_squares = o.step2_dot_margin_squares;
   const vision::BoardSize world_size{rec.world_board.cols, rec.world_board.rows};
   const vision::BoardSize sliding_size{rec.sliding_board.cols, rec.sliding_board.rows};
   // Boards and dots of every image first (parallel over images, OpenCV serial inside).

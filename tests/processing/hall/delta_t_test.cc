@@ -155,6 +155,54 @@ HallCalibrationInput MakeInput(const SyntheticHallRig& rig, const dataset::HallR
 // A dt anywhere in the search window: the splits bracket it to +-1/4 fast period (2.9 ms at
 // 86 Hz) and the field model recovers it within 0.05 ms from noisy readings (0.5 uT) and poses
 // (0.02 deg, 0.005 mm).
+// A field model's dt that a determined drive-phase dt contradicts by more than
+// max_phase_disagreement_sigmas combined sigmas is not reported (imprecise, both figures in the
+// reason); one within it stays identified, and neither an undetermined phase estimate nor a dt
+// the phases themselves gave is touched.
+TEST(DeltaTIdentification, AFieldModelDtTheDrivePhasesContradictIsNotReported) {
+  DeltaTEstimate field;
+  field.status = DeltaTStatus::kIdentified;
+  field.method = DeltaTMethod::kFieldModel;
+  field.model = HallModelKind::kLinear;
+  field.delta_t_s = 0.599e-3;
+  field.sigma_s = 7.7e-6;
+  DrivePhaseEstimate phases;
+  phases.determined = true;
+  phases.delta_t_s = 0.5503e-3;
+  phases.sigma_s = 2.0e-6;
+  const DeltaTIdentificationOptions o;
+  ASSERT_EQ(o.max_phase_disagreement_sigmas, 5);
+  {
+    DeltaTEstimate dt = field;  // 48.7 us apart, 7.96 us combined: 6.1 sigmas
+    EXPECT_TRUE(CrossCheckWithDrivePhases(phases, o, &dt));
+    EXPECT_FALSE(dt.identified());
+    EXPECT_EQ(dt.status, DeltaTStatus::kImprecise);
+    EXPECT_NE(dt.reason.find("the linear model puts dt at 0.599 ms"), std::string::npos)
+        << dt.reason;
+    EXPECT_NE(dt.reason.find("the drives' phases at 0.550 ms"), std::string::npos) << dt.reason;
+    EXPECT_NE(dt.reason.find("6.1 combined sigmas"), std::string::npos) << dt.reason;
+  }
+  {
+    DeltaTEstimate dt = field;
+    dt.delta_t_s = 0.5503e-3 + 4.9 * std::hypot(7.7e-6, 2.0e-6);
+    EXPECT_FALSE(CrossCheckWithDrivePhases(phases, o, &dt));
+    EXPECT_TRUE(dt.identified());
+  }
+  {
+    DeltaTEstimate dt = field;
+    DrivePhaseEstimate undetermined = phases;
+    undetermined.determined = false;
+    EXPECT_FALSE(CrossCheckWithDrivePhases(undetermined, o, &dt));
+    EXPECT_TRUE(dt.identified());
+    dt.method = DeltaTMethod::kDrivePhases;
+    EXPECT_FALSE(CrossCheckWithDrivePhases(phases, o, &dt));
+    EXPECT_TRUE(dt.identified());
+  }
+  DeltaTIdentificationOptions bad;
+  bad.max_phase_disagreement_sigmas = 0;
+  EXPECT_NE(bad.Validate().find("max_phase_disagreement_sigmas"), std::string::npos);
+}
+
 TEST(DeltaTCalibration, ADelayInsideTheBracketIsRecoveredWithNoise) {
   for (double delay : {-3.1e-3, 0.6e-3, 4.7e-3}) {
     SyntheticHallRig rig;

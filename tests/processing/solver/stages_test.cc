@@ -332,7 +332,7 @@ TEST(MeasureStage, DotsBesideThePatternWidenTheStepToItsBoardsWholePlane) {
     vision::CheckerboardDetection d;
     for (int r = 0; r < size.rows; ++r)
       for (int c = 0; c < size.cols; ++c)
-        d.corners_px.push_back(origin + square * Eigen::Vector2d(c + 0.05 * r, r));
+        d.corners_px.push_back(origin + square * Eigen::Vector2d(c + 0.05 * r, 1.0 * r));
     d.square_px = square;
     return d;
   };
@@ -347,8 +347,8 @@ TEST(MeasureStage, DotsBesideThePatternWidenTheStepToItsBoardsWholePlane) {
   };
   const auto w = board(world, {100, 80}, 20), s = board(sliding, {300, 500}, 20);
   // Sliding board (c, r) -> pixel: origin + 20 (c + 0.05 r, r).
-  auto on_plate = [](double c, double r) {
-    return Eigen::Vector2d(300, 500) + 20 * Eigen::Vector2d(c + 0.05 * r, r);
+  auto on_plate = [](double c, double r) -> Eigen::Vector2d {
+    return Eigen::Vector2d(300, 500) + 20 * Eigen::Vector2d(c + 0.05 * r, 1.0 * r);
   };
   const std::vector<std::vector<vision::BoardSize>> sizes(4, {world, sliding});
   const std::vector<int> expected = {1, 1, 1, 0};
