@@ -282,8 +282,8 @@ void RunExplain(const SolveArgs& args, const solver::PipelineOptions& options) {
     }
     std::vector<vision::DotCandidate> c3;
     vision::DotOptions opts;
-    vision::DetectDotsOverBackgroundAdaptive(img, background.Without(img), host->square_px,
-                                             options.dots, &opts, nullptr, &c3);
+    const std::vector<vision::Dot> dots3 = vision::DetectDotsOverBackgroundAdaptive(
+        img, background.Without(img), host->square_px, options.dots, &opts, nullptr, &c3);
     std::printf(
         "a third pass on the frame's difference from its static scene (%zu other images; "
         "threshold %.3g of full scale; the solve uses it where the count above is off, or where "
@@ -296,6 +296,22 @@ void RunExplain(const SolveArgs& args, const solver::PipelineOptions& options) {
         std::printf("  (%7.1f, %7.1f) %4d px peak %6.0f elong %.2f sat %3d: %s\n",
                     c.centroid_px.x(), c.centroid_px.y(), c.num_pixels, c.peak, c.elongation,
                     c.saturated_pixels, c.reason.c_str());
+    // The same plane-level filters as the passes above: what the solve would count from it.
+    const bool step1 = asks.size() == 2;
+    const std::vector<Eigen::Vector2d> exclude =
+        step1 && m.boards[0] ? vision::SquaresOutline(*m.boards[0], asks[0], 0.5)
+                             : std::vector<Eigen::Vector2d>{};
+    const double margin =
+        step1 ? options.step1_dot_margin_squares : options.step2_dot_margin_squares;
+    solver::RegionRejections region;
+    const size_t on_plane =
+        solver::DotsOnBoard(dots3, *host, asks[step1 ? 1 : 0], margin, options, exclude, &region)
+            .size();
+    std::printf(
+        "  of these, on the board's plane (within %g squares): %zu of %zu (refused: %d off the "
+        "plane, %d at a square corner, %d elongated in the plane)\n",
+        margin, on_plane, dots3.size(), region.off_plane, region.junction,
+        region.surface_elongated);
   }
 }
 

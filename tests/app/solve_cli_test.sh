@@ -84,6 +84,9 @@ PY
 grep -q "world board (23x28 inner corners): found by" "$dir/explain"
 grep -q "dot candidates:" "$dir/explain"
 grep -q "kept (Gaussian fit)" "$dir/explain"
+# The frame's count on the whole plane (dot_margin_from_data) and the third pass's plane filters.
+grep -Eq "^on the board's whole plane \(beyond step2_dot_margin_squares = 8; .*\): [0-9]+ of [0-9]+ blobs$" "$dir/explain"
+grep -Eq "^  of these, on the board's plane \(within 8 squares\): [0-9]+ of [0-9]+ \(refused: [0-9]+ off the plane, [0-9]+ at a square corner, [0-9]+ elongated in the plane\)$" "$dir/explain"
 # A later frame of the view: its boards are searched first where the view's first frame had them
 # (the first frame that found each board: solver::ViewHints).
 "$msmcal" solve "$dir/s" --explain step2/0002.png > "$dir/explain2" 2>&1
