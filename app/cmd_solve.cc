@@ -251,13 +251,10 @@ void RunExplain(const SolveArgs& args, const solver::PipelineOptions& options) {
     // dots (stages/measure.h, ResolveDotMargins): the frame's own count there.
     solver::RegionRejections region;
     const bool step1 = asks.size() == 2;
-    const size_t whole =
-        solver::DotsOnBoard(
-            m.dots, *host, asks[step1 ? 1 : 0], std::numeric_limits<double>::infinity(), options,
-            step1 && m.boards[0] ? vision::SquaresOutline(*m.boards[0], asks[0], 0.5)
-                                 : std::vector<Eigen::Vector2d>{},
-            &region)
-            .size();
+    solver::PipelineOptions whole_plane = options;
+    whole_plane.step1_dot_margin_squares = whole_plane.step2_dot_margin_squares =
+        std::numeric_limits<double>::infinity();
+    const size_t whole = solver::DotsOnHostPlane(m.dots, m, asks, whole_plane, &region).size();
     std::printf(
         "on the board's whole plane (beyond %s = %g; the solve takes it for the step where more "
         "of its frames show their dots there, dot_margin_from_data): %zu of %zu blobs\n",
@@ -297,16 +294,10 @@ void RunExplain(const SolveArgs& args, const solver::PipelineOptions& options) {
                     c.centroid_px.x(), c.centroid_px.y(), c.num_pixels, c.peak, c.elongation,
                     c.saturated_pixels, c.reason.c_str());
     // The same plane-level filters as the passes above: what the solve would count from it.
-    const bool step1 = asks.size() == 2;
-    const std::vector<Eigen::Vector2d> exclude =
-        step1 && m.boards[0] ? vision::SquaresOutline(*m.boards[0], asks[0], 0.5)
-                             : std::vector<Eigen::Vector2d>{};
     const double margin =
-        step1 ? options.step1_dot_margin_squares : options.step2_dot_margin_squares;
+        asks.size() == 2 ? options.step1_dot_margin_squares : options.step2_dot_margin_squares;
     solver::RegionRejections region;
-    const size_t on_plane =
-        solver::DotsOnBoard(dots3, *host, asks[step1 ? 1 : 0], margin, options, exclude, &region)
-            .size();
+    const size_t on_plane = solver::DotsOnHostPlane(dots3, m, asks, options, &region).size();
     std::printf(
         "  of these, on the board's plane (within %g squares): %zu of %zu (refused: %d off the "
         "plane, %d at a square corner, %d elongated in the plane)\n",

@@ -229,9 +229,14 @@ orchestrator::SessionResult RunLabAcquisition(const fs::path& out,
                                               const LabAcquisitionOptions& options) {
   orchestrator::OrchestratorOptions oo;
   oo.out_dir = out;
-  oo.generators = gen::ParseRigGeneratorConfig(options.rig_yaml, options.rig_origin);
-  const hall_mcu::HallMcuConfig mcu =
-      hall_mcu::ParseHallMcuConfig(options.rig_yaml, options.rig_origin);
+  // The rig file's text, parsed once (journalled with the session, so `msmcal resume` reads
+  // the same): generators, Hall MCU, and where the gate counts the dots (the plate's and the
+  // screen's dot_margin_squares).
+  const rig::RigFile rf = rig::ParseRigFile(options.rig_yaml, options.rig_origin);
+  oo.generators = rf.generators;
+  const hall_mcu::HallMcuConfig& mcu = rf.hall_mcu;
+  oo.gate.step1_margin_squares = rf.sliding_plate.dot_margin_squares;
+  oo.gate.step2_margin_squares = rf.step2.dot_margin_squares;
   oo.mcu = mcu.link;
   if (!options.mcu_device.empty()) oo.mcu.device = options.mcu_device;
   oo.mcu_rate_hz = mcu.rate_hz;
@@ -241,13 +246,6 @@ orchestrator::SessionResult RunLabAcquisition(const fs::path& out,
   oo.background_seconds = options.background_seconds;
   oo.actual_min_seconds = options.actual_min_seconds;
   oo.run_kind = "lab";
-  {
-    // Where the gate counts the dots: the rig's plate and screen (sliding_plate. and
-    // step2.dot_margin_squares; journalled with the rig's text, so `msmcal resume` has them).
-    const rig::RigFile rf = rig::ParseRigFile(options.rig_yaml, options.rig_origin);
-    oo.gate.step1_margin_squares = rf.sliding_plate.dot_margin_squares;
-    oo.gate.step2_margin_squares = rf.step2.dot_margin_squares;
-  }
   const std::string hook = ParseOperatorSpec(options.operator_spec);
   YAML::Emitter config;
   config << YAML::BeginMap << YAML::Key << "rig_file" << YAML::Value << options.rig_origin

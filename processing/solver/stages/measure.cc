@@ -85,21 +85,6 @@ void ForEachImage(size_t count, int threads, const std::function<void(size_t)>& 
     if (e) std::rethrow_exception(e);
 }
 
-// The dots of a measured image that lie on the plane of the board that carries them (step 1:
-// the sliding board, boards[1], never on the world board; step 2: the world board, boards[0]).
-std::vector<vision::Dot> DotsOnHostPlane(const std::vector<vision::Dot>& dots,
-                                         const ImageMeasurement& m,
-                                         const std::vector<vision::BoardSize>& sizes,
-                                         const PipelineOptions& o, RegionRejections* rej) {
-  if (sizes.size() == 2) {
-    return DotsOnBoard(dots, *m.boards[1], sizes[1], o.step1_dot_margin_squares, o,
-                       m.boards[0] ? vision::SquaresOutline(*m.boards[0], sizes[0], 0.5)
-                                   : std::vector<Eigen::Vector2d>{},
-                       rej);
-  }
-  return DotsOnBoard(dots, *m.boards[0], sizes[0], o.step2_dot_margin_squares, o, {}, rej);
-}
-
 // `expected[i]`: the dots image i should show (0: not checked). An image whose first pass finds
 // fewer on its board's plane is measured again with settings from its own data
 // (AdaptiveDotOptions); the second pass is kept if it finds more.
@@ -525,6 +510,21 @@ std::vector<vision::Dot> DotsOnBoard(const std::vector<vision::Dot>& dots,
   return out;
 }
 
+// The dots of a measured image that lie on the plane of the board that carries them (step 1:
+// the sliding board, boards[1], never on the world board; step 2: the world board, boards[0]).
+std::vector<vision::Dot> DotsOnHostPlane(const std::vector<vision::Dot>& dots,
+                                         const ImageMeasurement& m,
+                                         const std::vector<vision::BoardSize>& sizes,
+                                         const PipelineOptions& o, RegionRejections* rej) {
+  if (sizes.size() == 2) {
+    return DotsOnBoard(dots, *m.boards[1], sizes[1], o.step1_dot_margin_squares, o,
+                       m.boards[0] ? vision::SquaresOutline(*m.boards[0], sizes[0], 0.5)
+                                   : std::vector<Eigen::Vector2d>{},
+                       rej);
+  }
+  return DotsOnBoard(dots, *m.boards[0], sizes[0], o.step2_dot_margin_squares, o, {}, rej);
+}
+
 // The corners of `board` that no laser dot of the frame disturbs (their average over a view
 // leaves the others out).
 std::vector<char> CornersClearOfDots(const vision::CheckerboardDetection& board,
@@ -673,10 +673,10 @@ PipelineOptions ResolveDotMargins(const std::vector<std::vector<vision::BoardSiz
     int within = 0, on_plane = 0;
     for (size_t i : frames) {
       const ImageMeasurement& m = (*measured)[i];
-      RegionRejections r1, r2;
+      RegionRejections r;
       const auto want = static_cast<size_t>(std::max(expected[i], 0));
-      within += DotsOnHostPlane(m.dots, m, sizes[i], o, &r1).size() == want;
-      on_plane += DotsOnHostPlane(m.dots, m, sizes[i], whole, &r2).size() == want;
+      within += m.dots_on_plane == want;  // counted within the margin by the first pass
+      on_plane += DotsOnHostPlane(m.dots, m, sizes[i], whole, &r).size() == want;
     }
     if (on_plane <= within) continue;
     (step1 ? out.step1_dot_margin_squares : out.step2_dot_margin_squares) = kWholePlane;

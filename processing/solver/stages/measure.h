@@ -112,6 +112,14 @@ std::vector<vision::Dot> DotsOnBoard(const std::vector<vision::Dot>& dots,
                                      const std::vector<Eigen::Vector2d>& exclude,
                                      RegionRejections* rej);
 
+// The dots of a measured image on the plane of the board that carries them, with the options'
+// margins: step 1 (`sizes` has two boards) the sliding board, boards[1], never inside the world
+// board's outline; step 2 the world board, boards[0]. The host board must have been found.
+std::vector<vision::Dot> DotsOnHostPlane(const std::vector<vision::Dot>& dots,
+                                         const ImageMeasurement& m,
+                                         const std::vector<vision::BoardSize>& sizes,
+                                         const PipelineOptions& options, RegionRejections* rej);
+
 // The frame's dots on its board's plane, and the blobs refused there, into its detection row.
 void RecordDots(const std::vector<vision::Dot>& on_plane, const std::vector<vision::Dot>& all,
                 const RegionRejections& region, FrameDetection* fd);
@@ -139,7 +147,8 @@ struct RecordingMeasurement {
 
 // PipelineOptions::dot_margin_from_data, per step (step 1: images asking for two boards; step
 // 2: one): the configured margin, or the board's whole plane where more of the step's frames
-// (with their host board found) show exactly `expected[i]` dots there than within the margin.
+// (with their host board found) show exactly `expected[i]` dots there than within the margin
+// (their `dots_on_plane`, counted with the options' margins).
 // Returns the options with the margins taken; recounts dots_on_plane for a step that widened
 // and notes why.
 PipelineOptions ResolveDotMargins(const std::vector<std::vector<vision::BoardSize>>& sizes,

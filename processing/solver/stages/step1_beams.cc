@@ -65,10 +65,7 @@ Step1Frames MeasureStep1Frames(const dataset::Recording& rec,
                 (fd.note.empty() ? "" : "; " + fd.note);
     }
     RegionRejections region;
-    auto dots = DotsOnBoard(m.dots, *boards[1], sliding_size, o.step1_dot_margin_squares, o,
-                            boards[0] ? vision::SquaresOutline(*boards[0], world_size, 0.5)
-                                      : std::vector<Eigen::Vector2d>{},
-                            &region);
+    auto dots = DotsOnHostPlane(m.dots, m, {world_size, sliding_size}, o, &region);
     RecordDots(dots, m.dots, region, &fd);
     if (f.beams.empty() && !dots.empty()) {
       out.log.notes.push_back(f.file + ": background frame (every beam blocked) shows " +
